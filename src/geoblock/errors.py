@@ -1,0 +1,135 @@
+"""Every exception and warning geoblock raises.
+
+Every exception derives from :class:`GeoblockError`; where a builtin category fits it is mixed
+in, so ``except GeoblockError`` and ``except ValueError`` both work. Per-point numerical
+failure is never an exception: it is NaN in the result, a status code and one warning with
+the count (:class:`ConvergenceWarning`, :class:`OutOfBoundsWarning`, ...).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AdjustmentError",
+    "ConvergenceWarning",
+    "DemCoverageError",
+    "DemError",
+    "DuplicateModelError",
+    "GeoblockDeprecationWarning",
+    "GeoblockError",
+    "GeoblockIOError",
+    "GeoblockWarning",
+    "ModelFormatError",
+    "NoIntersectionWarning",
+    "OutOfBoundsWarning",
+    "PluginError",
+    "PluginWarning",
+    "SerializationError",
+    "ShapeMismatchError",
+    "SingularSystemError",
+    "TooFewPointsError",
+    "UnknownModelError",
+    "UnsupportedFormatError",
+]
+
+
+class GeoblockError(Exception):
+    """Root of every exception geoblock raises."""
+
+
+class PluginError(GeoblockError):
+    """A plugin is broken or conflicts with another one.
+
+    Attributes
+    ----------
+    plugin_name : str or None
+        The plugin (entry-point name or module) at fault.
+    """
+
+    def __init__(self, message: str, plugin_name: str | None = None):
+        super().__init__(message)
+        self.plugin_name = plugin_name
+
+
+class DuplicateModelError(PluginError, ValueError):
+    """Two plugins register the same sensor-model name."""
+
+
+class ShapeMismatchError(GeoblockError, ValueError):
+    """Coordinate arrays do not broadcast together (the message names them and their shapes)."""
+
+
+class UnknownModelError(GeoblockError, KeyError):
+    """A sensor-model name is not registered; the message lists the registered names."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0]) if self.args else ""
+
+
+class UnsupportedFormatError(GeoblockError, ValueError):
+    """No reader or writer recognised a file; the message names the file and the plugins asked."""
+
+
+class ModelFormatError(GeoblockError, ValueError):
+    """A reader recognised a file but its content is invalid (names the file and field)."""
+
+
+class SerializationError(GeoblockError, ValueError):
+    """A model dictionary cannot be turned into a model (missing field, bad schema_version)."""
+
+
+class DemError(GeoblockError):
+    """A DEM cannot be opened or used."""
+
+
+class DemCoverageError(DemError, ValueError):
+    """Points fall outside the DEM (strict mode only; the default is NaN and a status)."""
+
+
+class AdjustmentError(GeoblockError, RuntimeError):
+    """An adjustment cannot be set up or solved."""
+
+
+class TooFewPointsError(AdjustmentError, ValueError):
+    """Fewer observations than the adjustable parameters need; the message states the minimum."""
+
+
+class SingularSystemError(AdjustmentError):
+    """The normal equations are rank deficient.
+
+    Attributes
+    ----------
+    undetermined : tuple of str
+        Names of the parameters that the observations cannot determine.
+    """
+
+    def __init__(self, message: str, undetermined: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.undetermined = tuple(undetermined)
+
+
+class GeoblockIOError(GeoblockError, OSError):
+    """A file cannot be read or written."""
+
+
+class GeoblockWarning(UserWarning):
+    """Root of geoblock's warnings."""
+
+
+class ConvergenceWarning(GeoblockWarning):
+    """Some points did not converge; they are NaN in the result."""
+
+
+class OutOfBoundsWarning(GeoblockWarning):
+    """Some points lie outside the model's validity domain; they are NaN in the result."""
+
+
+class NoIntersectionWarning(GeoblockWarning):
+    """Some lines of sight missed the DEM; they are NaN in the result."""
+
+
+class PluginWarning(GeoblockWarning):
+    """A plugin failed to load or to register and was skipped."""
+
+
+class GeoblockDeprecationWarning(FutureWarning):
+    """A deprecated feature was used (visible by default)."""

@@ -1,0 +1,6 @@
+"""The one place geoblock opens files: sensor models (and, in later modules, DEMs and images)."""
+
+from geoblock.io.models import open_model, write_model
+from geoblock.io.points import read_points, write_points
+
+__all__ = ["open_model", "read_points", "write_model", "write_points"]

@@ -1,0 +1,117 @@
+"""open_model / write_model: dispatch to the plugins' reader and writer hooks."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from geoblock.errors import GeoblockIOError, UnsupportedFormatError
+from geoblock.models.protocol import SensorModel
+
+__all__ = ["open_model", "write_model"]
+
+_FORMATS_BY_SUFFIX = {".json": "json"}
+
+
+def open_model(path: str | os.PathLike[str], model: str | None = None, **options: Any) -> SensorModel:
+    """Open a sensor model from a metadata file.
+
+    Every plugin's ``geoblock_read_sensor_model`` hook is asked in turn (specific readers
+    first, generic ones last) until one recognises the file. geoblock's own model JSON
+    (``to_dict()`` output, as written by :func:`write_model`) is read by the built-in plugin.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Vendor metadata (DIMAP, RPB, _RPC.TXT, GeoTIFF with RPC tags, ...) or model JSON.
+    model : str, optional
+        The registered model to build (``geoblock plugins`` lists them); by default the
+        first reader that recognises the file decides.
+    **options
+        Reader options, passed to the plugins.
+
+    Returns
+    -------
+    SensorModel
+
+    Raises
+    ------
+    GeoblockIOError
+        ``path`` does not exist or is not a readable file.
+    UnknownModelError
+        ``model`` is not a registered model name.
+    UnsupportedFormatError
+        No reader recognised the file; the message names the file, the plugins consulted and
+        the registered models.
+    ModelFormatError
+        A reader recognised the file but found it invalid.
+    """
+    from geoblock.models.registry import get_registry
+    from geoblock.plugins import get_plugin_manager
+
+    path = Path(path)
+    if not path.is_file():
+        what = "is a directory" if path.is_dir() else "does not exist"
+        raise GeoblockIOError(f"cannot open sensor model: {str(path)!r} {what}")
+    registry = get_registry()
+    if model is not None:
+        registry.get(model)  # UnknownModelError listing the registered names
+    pm = get_plugin_manager()
+    result = pm.hook.geoblock_read_sensor_model(path=path, model_name=model, options=options)
+    if result is None:
+        consulted = [i.plugin_name for i in pm.hook.geoblock_read_sensor_model.get_hookimpls()]
+        wanted = f" as model {model!r}" if model else ""
+        raise UnsupportedFormatError(
+            f"{str(path)!r}: no geoblock plugin can read this file{wanted}. Readers consulted: "
+            f"{', '.join(consulted) or '(none)'}; registered models: "
+            f"{', '.join(registry.names()) or '(none)'}. Install the plugin for this sensor "
+            "or check the file."
+        )
+    return result
+
+
+def write_model(
+    model: SensorModel, path: str | os.PathLike[str], format: str | None = None, **options: Any
+) -> Path:
+    """Write a sensor model through the plugins' ``geoblock_write_sensor_model`` hook.
+
+    Parameters
+    ----------
+    model : SensorModel
+    path : str or path-like
+        Destination; overwritten if it exists.
+    format : str, optional
+        ``"json"`` (geoblock model JSON, any model) or a format a plugin writes (for example
+        ``"rpc-txt"``); inferred from the suffix when omitted (``.json`` -> ``"json"``).
+    **options
+        Writer options, passed to the plugins.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    from geoblock.plugins import get_plugin_manager
+
+    path = Path(path)
+    if format is None:
+        format = _FORMATS_BY_SUFFIX.get(path.suffix.lower())
+        if format is None:
+            raise UnsupportedFormatError(
+                f"{str(path)!r}: cannot infer a model format from the suffix "
+                f"{path.suffix!r}; pass format= (for example 'json')"
+            )
+    if not path.parent.is_dir():
+        raise GeoblockIOError(f"cannot write {str(path)!r}: directory {str(path.parent)!r} does not exist")
+    pm = get_plugin_manager()
+    written = pm.hook.geoblock_write_sensor_model(
+        model=model, path=path, format=format, options=options
+    )
+    if not written:
+        consulted = [i.plugin_name for i in pm.hook.geoblock_write_sensor_model.get_hookimpls()]
+        raise UnsupportedFormatError(
+            f"{str(path)!r}: no geoblock plugin writes model {model.name!r} as {format!r}. "
+            f"Writers consulted: {', '.join(consulted)}"
+        )
+    return path

@@ -1,0 +1,549 @@
+"""SensorModelBase: what sensor-model implementers subclass.
+
+An implementer writes the model's state, its parameters and **one** natural direction as a
+kernel on flat, finite float64 arrays:
+
+* ``_ground_to_image(lon, lat, h) -> (row, col[, status])`` (RPCs, affine cameras), or
+* ``_image_to_ground(row, col, h) -> (lon, lat[, status])`` (pushbroom line-of-sight models),
+
+and the base class supplies the rest: broadcasting, NaN isolation and per-point status, the
+other direction by Newton iteration, numeric ground and parameter partials, lines of sight,
+footprints, equality, pickling and dask tokens derived from ``to_dict()``.
+"""
+
+from __future__ import annotations
+
+import abc
+import json
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from geoblock import coords
+from geoblock._array import broadcast_float64, warn_status
+from geoblock.errors import GeoblockError
+from geoblock.models.parameters import ParameterSet
+from geoblock.typing import (
+    ArrayLike,
+    EcefCoords,
+    Float64Array,
+    GroundCoords,
+    ImageCoords,
+    LineOfSight,
+    Status,
+)
+
+__all__ = ["SensorModelBase", "canonical_json"]
+
+_CONVERGED = np.uint8(Status.CONVERGED)
+
+Kernel = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple]
+
+
+def canonical_json(data: Mapping[str, Any]) -> str:
+    """The canonical JSON text of a model dictionary (sorted keys, no spaces)."""
+    return json.dumps(data, sort_keys=True, separators=(",", ":"))
+
+
+class SensorModelBase(abc.ABC):
+    """Base class for sensor models, with defaults derived from a few abstract members.
+
+    Subclasses set ``name`` (the registry key, lowercase-kebab) and ``schema_version``, and
+    implement ``shape``, ``height_range``, ``parameters``, ``with_parameters``, ``to_dict``,
+    ``from_dict`` and at least one of ``_ground_to_image`` / ``_image_to_ground``. They may
+    override ``partials_ground`` and ``partials_parameters`` with analytic versions, which the
+    conformance kit (:mod:`geoblock.testing`) compares with the numeric defaults.
+
+    Models are immutable values: ``with_parameters`` returns a new model.
+    """
+
+    name: ClassVar[str]
+    schema_version: ClassVar[int] = 1
+
+    #: Newton iterations stop when the image-space correction is below this many pixels.
+    newton_tolerance_px: ClassVar[float] = 1e-9
+    #: Iteration cap of the Newton inversions.
+    newton_max_iterations: ClassVar[int] = 30
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if getattr(cls, "__abstractmethods__", None):
+            return
+        if (
+            cls._ground_to_image is SensorModelBase._ground_to_image
+            and cls._image_to_ground is SensorModelBase._image_to_ground
+        ):
+            raise TypeError(
+                f"{cls.__qualname__} must implement _ground_to_image or _image_to_ground "
+                "(the other direction is derived by Newton iteration)"
+            )
+
+    # ---------------------------------------------------------------- abstract members
+    @property
+    @abc.abstractmethod
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of the image, pixels."""
+
+    @property
+    @abc.abstractmethod
+    def height_range(self) -> tuple[float, float]:
+        """``(h_min, h_max)``: valid heights, metres above the WGS84 ellipsoid."""
+
+    @property
+    @abc.abstractmethod
+    def parameters(self) -> ParameterSet:
+        """The model's adjustable parameters."""
+
+    @abc.abstractmethod
+    def with_parameters(self, values: ArrayLike) -> Self:
+        """A new model with parameter values ``values`` (P,); never mutates ``self``."""
+
+    @abc.abstractmethod
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe state: ``{"model": name, "schema_version": n, ...}``."""
+
+    @classmethod
+    @abc.abstractmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Self:
+        """Rebuild a model from :meth:`to_dict` output."""
+
+    # ---------------------------------------------------------------- kernels
+    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        """Ground -> image on flat finite arrays; default: Newton on ``_image_to_ground``."""
+        return self._newton_ground_to_image(lon, lat, h)
+
+    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        """Image -> ground on flat finite arrays; default: Newton on ``_ground_to_image``."""
+        return self._newton_image_to_ground(row, col, h)
+
+    def _ground_seed(self) -> tuple[float, float]:
+        """``(lon, lat)`` of a ground point near the image centre, degrees.
+
+        Needed only by models that implement ``_ground_to_image`` alone, to start the Newton
+        backprojection. The default backprojects nothing and so cannot know; such models
+        override this (an RPC returns its LONG_OFF/LAT_OFF).
+        """
+        raise GeoblockError(
+            f"{type(self).__qualname__} implements only _ground_to_image: override "
+            "_ground_seed() to return a (lon, lat) near the image centre so that "
+            "backproject can be derived"
+        )
+
+    # ---------------------------------------------------------------- public directions
+    def project(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> ImageCoords:
+        """Ground -> image.
+
+        Parameters
+        ----------
+        lon, lat : array_like, (*S,)
+            Degrees (WGS84).
+        h : array_like, (*S,)
+            Metres above the WGS84 ellipsoid.
+
+        Returns
+        -------
+        ImageCoords
+            ``row, col`` (*S,) in pixels (pixel-centre convention). Points that fail are NaN;
+            one warning per failure kind gives the count. :meth:`project_with_status` returns
+            the per-point status.
+        """
+        result, status = self.project_with_status(lon, lat, h)
+        warn_status(status, f"{self.name}.project")
+        return result
+
+    def backproject(self, row: ArrayLike, col: ArrayLike, h: ArrayLike) -> GroundCoords:
+        """Image -> ground on the surface at ellipsoidal height ``h``.
+
+        Parameters
+        ----------
+        row, col : array_like, (*S,)
+            Pixels, pixel-centre convention.
+        h : array_like, (*S,)
+            Metres above the WGS84 ellipsoid.
+
+        Returns
+        -------
+        GroundCoords
+            ``lon, lat`` degrees and ``h`` metres, (*S,). Failed points are NaN, with one
+            warning per failure kind; :meth:`backproject_with_status` gives the status.
+        """
+        result, status = self.backproject_with_status(row, col, h)
+        warn_status(status, f"{self.name}.backproject")
+        return result
+
+    def project_with_status(
+        self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+    ) -> tuple[ImageCoords, np.ndarray]:
+        """:meth:`project` without warnings, with the (*S,) ``uint8`` :class:`Status` array."""
+        lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
+        row, col, status = self._apply(self._ground_to_image, "_ground_to_image", lon, lat, h)
+        return ImageCoords(row, col), status
+
+    def backproject_with_status(
+        self, row: ArrayLike, col: ArrayLike, h: ArrayLike
+    ) -> tuple[GroundCoords, np.ndarray]:
+        """:meth:`backproject` without warnings, with the (*S,) ``uint8`` :class:`Status` array."""
+        row, col, h = broadcast_float64(row=row, col=col, h=h)
+        lon, lat, status = self._apply(self._image_to_ground, "_image_to_ground", row, col, h)
+        h_out = np.where(status == _CONVERGED, h, np.nan)
+        return GroundCoords(lon, lat, h_out), status
+
+    def _apply(
+        self, kernel: Kernel, kernel_name: str, a: np.ndarray, b: np.ndarray, c: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run a kernel on the finite points only; NaN and a status elsewhere."""
+        shape = a.shape
+        out_a = np.full(shape, np.nan)
+        out_b = np.full(shape, np.nan)
+        status = np.full(shape, np.uint8(Status.INVALID_INPUT), dtype=np.uint8)
+        ok = np.isfinite(a) & np.isfinite(b) & np.isfinite(c)
+        if ok.any():
+            ka, kb, ks = _unpack(kernel(a[ok], b[ok], c[ok]), int(ok.sum()), self, kernel_name)
+            out_a[ok] = ka
+            out_b[ok] = kb
+            status[ok] = ks
+        failed = status != _CONVERGED
+        out_a[failed] = np.nan
+        out_b[failed] = np.nan
+        return out_a, out_b, status
+
+    # ---------------------------------------------------------------- ECEF conveniences
+    def project_ecef(self, x: ArrayLike, y: ArrayLike, z: ArrayLike) -> ImageCoords:
+        """Ground (ECEF metres) -> image."""
+        return self.project(*coords.ecef_to_geodetic(x, y, z))
+
+    def backproject_ecef(self, row: ArrayLike, col: ArrayLike, h: ArrayLike) -> EcefCoords:
+        """Image -> ground at height ``h``, as ECEF metres."""
+        return coords.geodetic_to_ecef(*self.backproject(row, col, h))
+
+    # ---------------------------------------------------------------- partials
+    #: Step of the numeric ground partials, metres along each local ENU axis.
+    ground_partials_step_m: ClassVar[float] = 1.0
+
+    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """d(row, col)/d(x, y, z) ECEF at ground points, pixels per metre.
+
+        The default uses central differences of ``ground_partials_step_m`` along local east,
+        north and up, chained to ECEF.
+
+        Returns
+        -------
+        ndarray, (*S, 2, 3)
+            ``[..., 0, :]`` is d(row)/d(x, y, z), ``[..., 1, :]`` d(col)/d(x, y, z).
+        """
+        lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
+        rot = coords.enu_rotation(lon, lat)  # (*S, 3, 3), rows e, n, u in ECEF
+        xyz = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)  # (*S, 3)
+        step = self.ground_partials_step_m
+        # (2, 3, *S, 3): sign, ENU axis, points, ECEF component
+        offsets = np.stack([rot, -rot])  # rot[..., k, :] is ENU axis k in ECEF
+        offsets = np.moveaxis(offsets, -2, 1)  # (2, 3, *S, 3)
+        shifted = xyz[None, None] + step * offsets
+        g = coords.ecef_to_geodetic(shifted[..., 0], shifted[..., 1], shifted[..., 2])
+        (row, col), _ = self.project_with_status(g.lon, g.lat, g.h)
+        d_row = (row[0] - row[1]) / (2 * step)  # (3, *S) d row / d(e, n, u)
+        d_col = (col[0] - col[1]) / (2 * step)
+        j_enu = np.stack([np.moveaxis(d_row, 0, -1), np.moveaxis(d_col, 0, -1)], axis=-2)
+        return j_enu @ rot  # (*S, 2, 3) @ (*S, 3, 3)
+
+    def partials_parameters(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """d(row, col)/d(parameter k) at ground points, pixels per unit of parameter k.
+
+        The default uses central differences through :meth:`with_parameters` with a step of
+        ``1e-3`` a-priori sigma (or ``1e-6 * max(1, |value|)`` for a free parameter). Every
+        parameter has a column, fixed ones included.
+
+        Returns
+        -------
+        ndarray, (*S, 2, P)
+        """
+        lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
+        params = self.parameters
+        out = np.empty(lon.shape + (2, len(params)))
+        steps = parameter_steps(params)
+        for k, step in enumerate(steps):
+            cols = []
+            for sign in (1.0, -1.0):
+                values = np.array(params.values)
+                values[k] += sign * step
+                (r, c), _ = self.with_parameters(values).project_with_status(lon, lat, h)
+                cols.append((r, c))
+            out[..., 0, k] = (cols[0][0] - cols[1][0]) / (2 * step)
+            out[..., 1, k] = (cols[0][1] - cols[1][1]) / (2 * step)
+        return out
+
+    # ---------------------------------------------------------------- geometry helpers
+    def los(self, row: ArrayLike, col: ArrayLike) -> LineOfSight:
+        """Lines of sight through image points, from the model's height range.
+
+        Backprojects each point at both ends of ``height_range``.
+
+        Returns
+        -------
+        LineOfSight
+            ``origin`` (*S, 3) ECEF metres at the top of the height range and ``direction``
+            (*S, 3) unit vectors pointing down.
+        """
+        row, col = broadcast_float64(row=row, col=col)
+        h_min, h_max = self.height_range
+        (lon, lat, h), _ = self.backproject_with_status(
+            np.stack([row, row]), np.stack([col, col]),
+            np.array([h_max, h_min]).reshape((2,) + (1,) * row.ndim),
+        )
+        xyz = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
+        top, bottom = xyz[0], xyz[1]
+        d = bottom - top
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return LineOfSight(top, d)
+
+    def footprint(self, h: float | None = None, n: int = 16) -> GroundCoords:
+        """The image outline on the surface at height ``h``.
+
+        Parameters
+        ----------
+        h : float, optional
+            Metres above the ellipsoid; default the middle of ``height_range``.
+        n : int
+            Points per side.
+
+        Returns
+        -------
+        GroundCoords
+            (4 n,) points along the pixel *edges* (row and col from -0.5 to size - 0.5),
+            clockwise in image space from the top-left corner, not closed.
+        """
+        rows, cols = self.shape
+        if h is None:
+            h = 0.5 * (self.height_range[0] + self.height_range[1])
+        t = np.linspace(0.0, 1.0, n, endpoint=False)
+        r0, r1, c0, c1 = -0.5, rows - 0.5, -0.5, cols - 0.5
+        row = np.concatenate(
+            [np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t]
+        )
+        col = np.concatenate(
+            [c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t, np.full(n, c0)]
+        )
+        return self.backproject(row, col, np.full(row.shape, float(h)))
+
+    # ---------------------------------------------------------------- value semantics
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return canonical_json(self.to_dict()) == canonical_json(other.to_dict())  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash(canonical_json(self.to_dict()))
+
+    def __reduce__(self) -> tuple:
+        return (type(self).from_dict, (self.to_dict(),))
+
+    def __dask_tokenize__(self) -> tuple[str, str]:
+        return (self.name, canonical_json(self.to_dict()))
+
+    def __repr__(self) -> str:
+        rows, cols = self.shape
+        h0, h1 = self.height_range
+        return (
+            f"<{type(self).__name__} {self.name!r} {rows}x{cols} px, "
+            f"h {h0:g}..{h1:g} m, {len(self.parameters)} parameters>"
+        )
+
+    # ---------------------------------------------------------------- Newton inversions
+    def _newton_image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        """Backproject by Newton iteration on ``_ground_to_image`` in (lon, lat).
+
+        Start: a linearisation at ``_ground_seed()``. Each iteration uses a forward-difference
+        Jacobian (1e-6 degree steps) and halves a step that increases the residual (up to 8
+        times). Converged when the image residual is below ``newton_tolerance_px``; a point
+        whose forward projection fails becomes DIVERGED, one that runs out of iterations
+        MAX_ITERATIONS.
+        """
+        lon0, lat0 = self._ground_seed()
+        n = row.shape[0]
+        lon = np.full(n, float(lon0))
+        lat = np.full(n, float(lat0))
+        f0 = self._forward_flat(lon, lat, h)
+        jac = self._jacobian_lonlat(lon, lat, h, f0)
+        target = np.stack([row, col], axis=-1)
+        delta = _solve2(jac, target - f0)
+        lon = lon + delta[:, 0]
+        lat = lat + delta[:, 1]
+        return _newton(
+            x=np.stack([lon, lat], axis=-1),
+            residual=lambda x, idx: target[idx] - self._forward_flat(x[:, 0], x[:, 1], h[idx]),
+            jacobian=lambda x, idx, f: self._jacobian_lonlat(
+                x[:, 0], x[:, 1], h[idx], target[idx] - f
+            ),
+            residual_tol=self.newton_tolerance_px,
+            step_tol=None,
+            max_iter=self.newton_max_iterations,
+            clamp=_clamp_lonlat,
+        )
+
+    def _newton_ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        """Project by Newton iteration on ``_image_to_ground`` in (row, col).
+
+        The residual is the ground miss in local metres (east, north); the Jacobian is a
+        forward difference with 0.1-pixel steps; converged when the pixel step is below
+        ``newton_tolerance_px``.
+        """
+        rows, cols = self.shape
+        n = lon.shape[0]
+        x0 = np.tile([(rows - 1) / 2.0, (cols - 1) / 2.0], (n, 1))
+        scale_e = np.radians(1.0) * coords.WGS84_A * np.cos(np.radians(lat))
+        scale_n = np.radians(1.0) * coords.WGS84_A
+
+        def residual(x: np.ndarray, idx: np.ndarray) -> np.ndarray:
+            g_lon, g_lat = self._backward_flat(x[:, 0], x[:, 1], h[idx])
+            d_lon = (lon[idx] - g_lon + 180.0) % 360.0 - 180.0
+            return np.stack([d_lon * scale_e[idx], (lat[idx] - g_lat) * scale_n], axis=-1)
+
+        def jacobian(x: np.ndarray, idx: np.ndarray, f: np.ndarray) -> np.ndarray:
+            step = 0.1
+            cols_ = []
+            for k in range(2):
+                xs = x.copy()
+                xs[:, k] += step
+                cols_.append((f - residual(xs, idx)) / step)  # d(ground)/d(image)
+            return np.stack(cols_, axis=-1)
+
+        return _newton(
+            x=x0,
+            residual=residual,
+            jacobian=jacobian,
+            residual_tol=None,
+            step_tol=self.newton_tolerance_px,
+            max_iter=self.newton_max_iterations,
+            clamp=None,
+        )
+
+    def _forward_flat(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """(N, 2) image coordinates from the ground->image kernel; NaN where it fails."""
+        r, c, s = _unpack(self._ground_to_image(lon, lat, h), lon.shape[0], self, "_ground_to_image")
+        out = np.stack([r, c], axis=-1)
+        out[s != _CONVERGED] = np.nan
+        return out
+
+    def _backward_flat(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        lo, la, s = _unpack(self._image_to_ground(row, col, h), row.shape[0], self, "_image_to_ground")
+        bad = s != _CONVERGED
+        lo = np.where(bad, np.nan, lo)
+        la = np.where(bad, np.nan, la)
+        return lo, la
+
+    def _jacobian_lonlat(self, lon, lat, h, f) -> np.ndarray:
+        """(N, 2, 2) d(row, col)/d(lon, lat) by forward differences of 1e-6 degree."""
+        step = 1e-6
+        j_lon = (self._forward_flat(lon + step, lat, h) - f) / step
+        j_lat = (self._forward_flat(lon, lat + step, h) - f) / step
+        return np.stack([j_lon, j_lat], axis=-1)
+
+
+def parameter_steps(params: ParameterSet) -> np.ndarray:
+    """Finite-difference steps for numeric parameter partials (see ``partials_parameters``)."""
+    return np.where(
+        np.isfinite(params.sigmas),
+        1e-3 * params.sigmas,
+        1e-6 * np.maximum(1.0, np.abs(params.values)),
+    )
+
+
+def _clamp_lonlat(x: np.ndarray) -> np.ndarray:
+    x[:, 0] = (x[:, 0] + 180.0) % 360.0 - 180.0
+    x[:, 1] = np.clip(x[:, 1], -90.0, 90.0)
+    return x
+
+
+def _unpack(result: tuple, n: int, model: object, kernel: str) -> tuple:
+    """Validate a kernel's ``(a, b[, status])`` result for ``n`` points."""
+    if not isinstance(result, tuple) or len(result) not in (2, 3):
+        raise GeoblockError(
+            f"{type(model).__qualname__}.{kernel} must return (a, b) or (a, b, status), "
+            f"got {type(result).__name__}"
+        )
+    a = np.asarray(result[0], dtype=np.float64)
+    b = np.asarray(result[1], dtype=np.float64)
+    if len(result) == 3 and result[2] is not None:
+        s = np.asarray(result[2]).astype(np.uint8)
+    else:
+        s = np.full(n, _CONVERGED, dtype=np.uint8)
+    for arr in (a, b, s):
+        if arr.shape != (n,):
+            raise GeoblockError(
+                f"{type(model).__qualname__}.{kernel} returned shape {arr.shape} for {n} points"
+            )
+    s = np.where((s == _CONVERGED) & ~(np.isfinite(a) & np.isfinite(b)), np.uint8(Status.DIVERGED), s)
+    return a, b, s
+
+
+def _solve2(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve (N, 2, 2) x = (N, 2); NaN for singular systems."""
+    a, b, c, d = jac[:, 0, 0], jac[:, 0, 1], jac[:, 1, 0], jac[:, 1, 1]
+    det = a * d - b * c
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x0 = (d * rhs[:, 0] - b * rhs[:, 1]) / det
+        x1 = (-c * rhs[:, 0] + a * rhs[:, 1]) / det
+    return np.stack([x0, x1], axis=-1)
+
+
+def _newton(
+    *,
+    x: np.ndarray,
+    residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    residual_tol: float | None,
+    step_tol: float | None,
+    max_iter: int,
+    clamp: Callable[[np.ndarray], np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorised 2-D Newton with step halving, iterating only the points still active.
+
+    ``residual(x, idx)`` is (N, 2) target minus model at the points ``idx``; ``jacobian(x, idx,
+    f)`` is (N, 2, 2) d(model)/d(x) there. A point converges when its residual norm is at most
+    ``residual_tol`` or its last step at most ``step_tol`` (whichever is given); it diverges
+    when a residual or step is not finite. Returns ``(x0, x1, status)``, ``x`` updated in place.
+    """
+    status = np.full(x.shape[0], np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
+    active = np.arange(x.shape[0])
+    f = residual(x, active)
+    for iteration in range(max_iter + 1):
+        norm = np.hypot(f[:, 0], f[:, 1])
+        bad = ~np.isfinite(norm)
+        status[active[bad]] = Status.DIVERGED
+        keep = ~bad
+        if residual_tol is not None:
+            converged = keep & (norm <= residual_tol)
+            status[active[converged]] = Status.CONVERGED
+            keep &= ~converged
+        active, f, norm = active[keep], f[keep], norm[keep]
+        if active.size == 0 or iteration == max_iter:
+            break
+        xa = x[active]
+        step = _solve2(jacobian(xa, active, f), f)
+        singular = ~np.all(np.isfinite(step), axis=-1)
+        status[active[singular]] = Status.DIVERGED
+        ok = ~singular
+        active, xa, f, norm, step = active[ok], xa[ok], f[ok], norm[ok], step[ok]
+        scale = np.ones(active.size)
+        x_new = xa + step
+        if clamp is not None:
+            x_new = clamp(x_new)
+        f_new = residual(x_new, active)
+        for _ in range(8):  # halve steps that make the residual grow
+            worse = ~(np.hypot(f_new[:, 0], f_new[:, 1]) <= norm)
+            if not worse.any():
+                break
+            scale[worse] *= 0.5
+            x_try = xa[worse] + scale[worse, None] * step[worse]
+            x_new[worse] = clamp(x_try) if clamp is not None else x_try
+            f_new[worse] = residual(x_new[worse], active[worse])
+        x[active] = x_new
+        f = f_new
+        if step_tol is not None:
+            small = (np.max(np.abs(step), axis=-1) <= step_tol) & (scale == 1.0)
+            small &= np.all(np.isfinite(f), axis=-1)
+            status[active[small]] = Status.CONVERGED
+            active, f = active[~small], f[~small]
+    return x[:, 0], x[:, 1], status
