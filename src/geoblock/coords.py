@@ -28,6 +28,7 @@ __all__ = [
     "WGS84_F",
     "LocalFrame",
     "ecef_to_geodetic",
+    "enu_offsets",
     "enu_rotation",
     "enu_to_ecef_jacobian",
     "geodetic_to_ecef",
@@ -145,6 +146,36 @@ def enu_rotation(lon: ArrayLike, lat: ArrayLike) -> Float64Array:
         [cp * cl, cp * sl, sp],
     ]
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def enu_offsets(
+    lon_ref: ArrayLike,
+    lat_ref: ArrayLike,
+    h_ref: ArrayLike,
+    lon: ArrayLike,
+    lat: ArrayLike,
+    h: ArrayLike,
+) -> tuple[Float64Array, Float64Array, Float64Array]:
+    """East, north and up offsets of points from reference points, in each reference's frame.
+
+    Parameters
+    ----------
+    lon_ref, lat_ref, h_ref : array_like, (*S,)
+        Reference points (degrees, metres above the ellipsoid), e.g. surveyed check points.
+    lon, lat, h : array_like, (*S,)
+        The points to compare, e.g. the same points located through a sensor model.
+
+    Returns
+    -------
+    tuple of ndarray, (*S,) each
+        ``(de, dn, du)``: point minus reference, metres along the reference's local east,
+        north and up.
+    """
+    ref = np.stack(geodetic_to_ecef(lon_ref, lat_ref, h_ref), axis=-1)
+    pts = np.stack(geodetic_to_ecef(lon, lat, h), axis=-1)
+    rot = enu_rotation(lon_ref, lat_ref)
+    d = np.einsum("...ij,...j->...i", rot, pts - ref)
+    return d[..., 0], d[..., 1], d[..., 2]
 
 
 def enu_to_ecef_jacobian(lon: ArrayLike, lat: ArrayLike) -> Float64Array:

@@ -20,6 +20,7 @@ __all__ = [
     "GeoblockWarning",
     "ModelFormatError",
     "NoIntersectionWarning",
+    "ObservationError",
     "OutOfBoundsWarning",
     "PluginError",
     "PluginWarning",
@@ -87,6 +88,10 @@ class DemCoverageError(DemError, ValueError):
 
 class AdjustmentError(GeoblockError, RuntimeError):
     """An adjustment cannot be set up or solved."""
+
+
+class ObservationError(AdjustmentError, ValueError):
+    """Observations are invalid (non-finite values, bad sigmas, duplicate ids); names the points."""
 
 
 class TooFewPointsError(AdjustmentError, ValueError):

@@ -96,7 +96,7 @@ def create_plugin_manager(
         _register_guarded(pm, plugin, getattr(plugin, "__name__", None), None)
     _check_pending(pm)
     if os.environ.get("GEOBLOCK_TRACE_PLUGINS"):
-        pm.trace.root.setwriter(sys.stderr.write)
+        pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
         pm.enable_tracing()
     return pm
 
