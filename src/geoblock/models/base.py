@@ -63,6 +63,8 @@ class SensorModelBase(abc.ABC):
 
     #: Newton iterations stop when the image-space correction is below this many pixels.
     newton_tolerance_px: ClassVar[float] = 1e-9
+    #: A residual that no step can reduce (float64's floor) is accepted below this many pixels.
+    newton_stall_px: ClassVar[float] = 1e-7
     #: Iteration cap of the Newton inversions.
     newton_max_iterations: ClassVar[int] = 30
 
@@ -356,7 +358,8 @@ class SensorModelBase(abc.ABC):
 
         Start: a linearisation at ``_ground_seed()``. Each iteration uses a forward-difference
         Jacobian (1e-6 degree steps) and halves a step that increases the residual (up to 8
-        times). Converged when the image residual is below ``newton_tolerance_px``; a point
+        times). Converged when the image residual is below ``newton_tolerance_px``, or below
+        ``newton_stall_px`` when no step reduces it any more (float64's floor); a point
         whose forward projection fails becomes DIVERGED, one that runs out of iterations
         MAX_ITERATIONS.
         """
@@ -380,6 +383,7 @@ class SensorModelBase(abc.ABC):
             step_tol=None,
             max_iter=self.newton_max_iterations,
             clamp=_clamp_lonlat,
+            stall_tol=self.newton_stall_px,
         )
 
     def _newton_ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
@@ -387,7 +391,8 @@ class SensorModelBase(abc.ABC):
 
         The residual is the ground miss in local metres (east, north); the Jacobian is a
         forward difference with 0.1-pixel steps; converged when the pixel step is below
-        ``newton_tolerance_px``.
+        ``newton_tolerance_px``, or below ``newton_stall_px`` when no step reduces the ground
+        miss any more (float64's floor).
         """
         rows, cols = self.shape
         n = lon.shape[0]
@@ -417,6 +422,7 @@ class SensorModelBase(abc.ABC):
             step_tol=self.newton_tolerance_px,
             max_iter=self.newton_max_iterations,
             clamp=None,
+            stall_tol=self.newton_stall_px,
         )
 
     def _forward_flat(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -497,12 +503,15 @@ def _newton(
     step_tol: float | None,
     max_iter: int,
     clamp: Callable[[np.ndarray], np.ndarray] | None,
+    stall_tol: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vectorised 2-D Newton with step halving, iterating only the points still active.
 
     ``residual(x, idx)`` is (N, 2) target minus model at the points ``idx``; ``jacobian(x, idx,
     f)`` is (N, 2, 2) d(model)/d(x) there. A point converges when its residual norm is at most
-    ``residual_tol`` or its last step at most ``step_tol`` (whichever is given); it diverges
+    ``residual_tol`` or its last step at most ``step_tol`` (whichever is given), or when no step
+    reduces the residual any more while the residual (or, with ``step_tol``, the step) is below
+    ``stall_tol``: float64's floor; it diverges
     when a residual or step is not finite. Returns ``(x0, x1, status)``, ``x`` updated in place.
     """
     status = np.full(x.shape[0], np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
@@ -539,11 +548,19 @@ def _newton(
             x_try = xa[worse] + scale[worse, None] * step[worse]
             x_new[worse] = clamp(x_try) if clamp is not None else x_try
             f_new[worse] = residual(x_new[worse], active[worse])
-        x[active] = x_new
-        f = f_new
+        finished = np.zeros(active.size, bool)
+        if stall_tol is not None:
+            # float64's floor: no step reduces the residual any more
+            size = norm if residual_tol is not None else np.max(np.abs(step), axis=-1)
+            stalled = ~(np.hypot(f_new[:, 0], f_new[:, 1]) < norm) & (size <= stall_tol)
+            status[active[stalled]] = Status.CONVERGED
+            x_new[stalled] = xa[stalled]
+            finished |= stalled
         if step_tol is not None:
             small = (np.max(np.abs(step), axis=-1) <= step_tol) & (scale == 1.0)
-            small &= np.all(np.isfinite(f), axis=-1)
+            small &= np.all(np.isfinite(f_new), axis=-1) & ~finished
             status[active[small]] = Status.CONVERGED
-            active, f = active[~small], f[~small]
+            finished |= small
+        x[active] = x_new
+        active, f = active[~finished], f_new[~finished]
     return x[:, 0], x[:, 1], status

@@ -1,0 +1,22 @@
+"""The README's quickstart runs as written."""
+
+import re
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_quickstart_runs(tmp_path, monkeypatch, capsys):
+    code = re.search(r"```python\n(.*?)```", README.read_text(), re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, str(README), "exec"), {})
+    out = capsys.readouterr().out
+    assert "converged" in out and "a0" in out
+    assert (tmp_path / "scene.json").is_file()
+
+
+def test_setup_commands_match_ci():
+    text = README.read_text()
+    ci = (README.parent / ".ci" / "run").read_text()
+    test_command = next(line for line in text.splitlines() if "requirements-dev.txt" in line and "pytest" in line)
+    assert test_command.strip() in ci
