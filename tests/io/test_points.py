@@ -41,3 +41,20 @@ def test_write_read_round_trip_is_exact(values):
     buf.seek(0)
     back = read_points(buf, required=("row",))
     assert back["row"].tolist() == values
+
+
+def test_other_columns_pass_through_as_written_and_lines_count_blank_lines(tmp_path):
+    path = tmp_path / "p.csv"
+    path.write_text("lon,lat,h,code\n7.05,43.7,100,007\n")
+    pts = read_points(path, required=("lon", "lat", "h"))
+    assert pts["code"].tolist() == ["007"] and pts["h"].tolist() == [100.0]
+    path.write_text("lon,lat,h\n\n7.05,43.7,abc\n")
+    with pytest.raises(PointFileError, match="line 3, column 'h'"):
+        read_points(path, required=("lon", "lat", "h"))
+
+
+def test_write_points_error_is_a_geoblock_error(tmp_path):
+    from geoblock.errors import GeoblockIOError
+
+    with pytest.raises(GeoblockIOError, match="cannot write point file"):
+        write_points(tmp_path / "missing" / "out.csv", {"row": np.zeros(1)})

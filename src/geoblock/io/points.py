@@ -3,7 +3,7 @@
 Column names follow the conventions: ground ``lon, lat, h`` (degrees, metres above the
 ellipsoid), image ``row, col`` (pixels, pixel-centre convention), accuracies ``sigma_row,
 sigma_col`` (pixels) and ``sigma_e, sigma_n, sigma_h`` (metres), and the text columns ``id``,
-``kind`` (``gcp`` | ``icp``) and ``image``. Other columns are kept as text.
+``kind`` (``gcp`` | ``icp``) and ``image``. Other columns are kept as text, exactly as written.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import csv
 import io
 import os
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -22,7 +22,10 @@ from geoblock.errors import GeoblockIOError, ModelFormatError
 
 __all__ = ["PointFileError", "read_points", "write_points"]
 
-TEXT_COLUMNS = frozenset({"id", "kind", "image", "name"})
+NUMERIC_COLUMNS = frozenset(
+    {"lon", "lat", "h", "row", "col", "x", "y", "z", "sigma", "sigma_row", "sigma_col",
+     "sigma_e", "sigma_n", "sigma_h"}
+)
 
 
 class PointFileError(ModelFormatError):
@@ -48,8 +51,9 @@ def read_points(
     Returns
     -------
     dict of str to ndarray
-        Numeric columns as float64 (N,), text columns (``id``, ``kind``, ``image``, unknown
-        ones) as str (N,). An ``id`` column is made up (``"1"``, ``"2"``...) when absent.
+        The coordinate and sigma columns (``lon, lat, h, row, col, x, y, z, sigma_*``) and the
+        ``required`` and ``optional`` ones as float64 (N,); every other column as str (N,),
+        exactly as written. An ``id`` column is made up (``"1"``, ``"2"``...) when absent.
 
     Raises
     ------
@@ -59,36 +63,34 @@ def read_points(
         The file cannot be read.
     """
     name, text = _read_text(source)
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in rows if r and not (len(r) == 1 and not r[0].strip())]
-    if not rows:
+    reader = csv.reader(io.StringIO(text))
+    records = [(reader.line_num, r) for r in reader if any(f.strip() for f in r)]
+    if not records:
         raise PointFileError(f"{name}: empty point file (a header line is required)")
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip() for h in records[0][1]]
     missing = [c for c in required if c not in header]
     if missing:
-        raise PointFileError(
-            f"{name}: missing column(s) {missing}; the header has {header}"
-        )
-    out: dict[str, np.ndarray] = {}
-    body = rows[1:]
-    for line_no, r in enumerate(body, start=2):
+        raise PointFileError(f"{name}: missing column(s) {missing}; the header has {header}")
+    body = records[1:]
+    for line_no, r in body:
         if len(r) != len(header):
             raise PointFileError(
                 f"{name}, line {line_no}: {len(r)} fields but the header has {len(header)}"
             )
+    numeric = NUMERIC_COLUMNS | set(required) | set(optional or {})
+    out: dict[str, np.ndarray] = {}
     for j, col in enumerate(header):
-        values = [r[j].strip() for r in body]
-        if col in TEXT_COLUMNS or (col not in required and col not in (optional or {})
-                                   and not _all_numeric(values)):
+        values = [r[j].strip() for _, r in body]
+        if col not in numeric:
             out[col] = np.array(values, dtype=str)
             continue
         arr = np.empty(len(values))
-        for i, v in enumerate(values):
+        for i, ((line_no, _), v) in enumerate(zip(body, values, strict=True)):
             try:
                 arr[i] = float(v) if v not in ("", "nan", "NaN") else np.nan
             except ValueError:
                 raise PointFileError(
-                    f"{name}, line {i + 2}, column {col!r}: {v!r} is not a number"
+                    f"{name}, line {line_no}, column {col!r}: {v!r} is not a number"
                 ) from None
         out[col] = arr
     n = len(body)
@@ -98,16 +100,6 @@ def read_points(
     if "id" not in out:
         out["id"] = np.array([str(i + 1) for i in range(n)], dtype=str)
     return out
-
-
-def _all_numeric(values: Iterable[str]) -> bool:
-    try:
-        for v in values:
-            if v:
-                float(v)
-    except ValueError:
-        return False
-    return True
 
 
 def _read_text(source: str | os.PathLike[str] | IO[str]) -> tuple[str, str]:
@@ -146,5 +138,8 @@ def write_points(target: str | os.PathLike[str] | IO[str], columns: Mapping[str,
     elif str(target) == "-":
         emit(sys.stdout)
     else:
-        with open(target, "w", encoding="utf-8", newline="") as f:
-            emit(f)
+        try:
+            with open(target, "w", encoding="utf-8", newline="") as f:
+                emit(f)
+        except OSError as exc:
+            raise GeoblockIOError(f"cannot write point file {str(target)!r}: {exc.strerror}") from exc

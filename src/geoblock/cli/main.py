@@ -1,0 +1,288 @@
+"""The ``geoblock`` click group: built-in commands, plugin commands, errors and warnings.
+
+* :func:`build_cli` makes the group, optionally from a given plugin manager (tests, embedding);
+  :data:`cli` is one built over the process-wide plugin manager and :func:`main` the
+  console-script entry point.
+* Built-in commands are added first. Plugin commands come from each plugin's
+  ``geoblock_register_commands(cli)``, called one plugin at a time inside ``try``: a plugin
+  whose hook raises is rolled back, reported with a :class:`~geoblock.errors.PluginWarning`
+  and replaced by a :class:`BrokenCommand` stub that explains the failure (click-plugins'
+  ``BrokenCommand``, as vendored by rasterio). A plugin cannot replace an existing command.
+  Plugin commands are loaded lazily, the first time the group lists or resolves a command, so
+  that ``-q`` already applies to the warnings of plugin loading.
+* Any exception (a :class:`~geoblock.errors.GeoblockError` or an unexpected one) becomes one
+  ``Error: <message>`` line on standard error and exit code 1; ``--verbose`` prints the
+  traceback first. click's usage errors keep click's behaviour (exit code 2).
+* Warnings are printed as one ``Warning: <message>`` line each; ``--quiet`` drops geoblock's.
+"""
+
+from __future__ import annotations
+
+import errno
+import traceback
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import click
+
+from geoblock import plugins as _plugins
+from geoblock.errors import (
+    GeoblockDeprecationWarning,
+    GeoblockError,
+    GeoblockWarning,
+    PluginError,
+    PluginWarning,
+)
+
+__all__ = ["BrokenCommand", "GeoblockGroup", "build_cli", "cli", "main"]
+
+_GEOBLOCK_WARNINGS = (GeoblockWarning, GeoblockDeprecationWarning)
+
+#: click's own control flow: never turned into an ``Error:`` line by geoblock.
+_CLICK_FLOW = (
+    click.exceptions.ClickException,
+    click.exceptions.Exit,
+    click.exceptions.Abort,
+    EOFError,
+)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
+def error_message(exc: BaseException) -> str:
+    """The one-line message shown for ``exc`` after ``Error:``."""
+    if isinstance(exc, GeoblockError):
+        text = _one_line(str(exc)) or type(exc).__name__
+    elif isinstance(exc, OSError) and exc.strerror:
+        text = _one_line(str(exc))  # "[Errno 2] No such file or directory: 'out/x.csv'"
+    else:
+        detail = _one_line(str(exc))
+        text = f"{type(exc).__name__}: {detail}" if detail else type(exc).__name__
+    return text
+
+
+class BrokenCommand(click.Command):
+    """Stands in for the commands of a plugin whose ``geoblock_register_commands`` raised.
+
+    Listed in ``geoblock --help`` with a short note; running it fails with one ``Error:`` line
+    naming the plugin and the original exception (``geoblock -v`` shows its traceback).
+    """
+
+    def __init__(self, name: str, plugin_name: str, exc: BaseException) -> None:
+        self.plugin_name = plugin_name
+        self.exc = exc
+        reason = error_message(exc)
+        super().__init__(
+            name,
+            help=(
+                f"Warning: geoblock plugin {plugin_name!r} failed to add its commands, so "
+                f"they are unavailable: {reason}\n\nReinstall or update the plugin; "
+                f"'geoblock -v {name}' shows the traceback."
+            ),
+            short_help="(broken plugin: run it for details)",
+            context_settings={"ignore_unknown_options": True, "allow_extra_args": True},
+        )
+
+    def invoke(self, ctx: click.Context) -> Any:
+        raise PluginError(
+            f"geoblock plugin {self.plugin_name!r} failed to add its commands: "
+            f"{error_message(self.exc)}",
+            plugin_name=self.plugin_name,
+        ) from self.exc
+
+
+class GeoblockGroup(click.Group):
+    """The ``geoblock`` group: lazy plugin commands, one-line errors and warnings.
+
+    Parameters
+    ----------
+    plugin_manager : pluggy.PluginManager, optional
+        Where plugin commands come from; by default :func:`geoblock.plugins.get_plugin_manager`
+        (looked up when first needed).
+    """
+
+    def __init__(self, *args: Any, plugin_manager: Any = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._plugin_manager = plugin_manager
+        self._plugins_loaded = False
+        #: plugin name -> names of the commands it added
+        self.plugin_commands: dict[str, list[str]] = {}
+        #: plugin name -> one-line reason its ``geoblock_register_commands`` failed
+        self.broken_plugins: dict[str, str] = {}
+        self.verbose = False
+        self.quiet = False
+
+    # ------------------------------------------------------------------ plugins
+    @property
+    def plugin_manager(self) -> Any:
+        """The plugin manager given to :func:`build_cli`, else the process-wide one."""
+        if self._plugin_manager is not None:
+            return self._plugin_manager
+        return _plugins.get_plugin_manager()
+
+    @property
+    def explicit_plugin_manager(self) -> Any:
+        """The plugin manager given to :func:`build_cli`, or ``None`` for the process-wide one."""
+        return self._plugin_manager
+
+    def load_plugin_commands(self) -> None:
+        """Call every plugin's ``geoblock_register_commands(cli)`` once, each in isolation."""
+        if self._plugins_loaded:
+            return
+        self._plugins_loaded = True
+        hook = self.plugin_manager.hook.geoblock_register_commands
+        for impl in reversed(hook.get_hookimpls()):  # the order pluggy itself calls them in
+            self._register_from(impl)
+
+    def _register_from(self, impl: Any) -> None:
+        name = impl.plugin_name
+        before = dict(self.commands)
+        try:
+            kwargs = {"cli": self}
+            impl.function(*[kwargs[a] for a in impl.argnames])
+        except Exception as exc:  # third-party code must not take the command line down
+            self.commands.clear()
+            self.commands.update(before)
+            reason = error_message(exc)
+            self.broken_plugins[name] = reason
+            warnings.warn(
+                f"geoblock plugin {name!r} failed to add its commands and was skipped: {reason}",
+                PluginWarning,
+                stacklevel=2,
+            )
+            if name not in self.commands:
+                self.add_command(BrokenCommand(name, name, exc))
+            return
+        for cmd_name, cmd in before.items():
+            if self.commands.get(cmd_name) is not cmd:
+                self.commands[cmd_name] = cmd
+                warnings.warn(
+                    f"geoblock plugin {name!r} tried to replace the command {cmd_name!r}; "
+                    "the existing command was kept",
+                    PluginWarning,
+                    stacklevel=2,
+                )
+        self.plugin_commands[name] = [n for n in self.commands if n not in before]
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        self.load_plugin_commands()
+        return super().list_commands(ctx)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        self.load_plugin_commands()
+        return super().get_command(ctx, cmd_name)
+
+    # ------------------------------------------------------------------ errors and warnings
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        self.verbose = False
+        self.quiet = False
+        with warnings.catch_warnings():
+            for category in _GEOBLOCK_WARNINGS:
+                warnings.filterwarnings("always", category=category)
+            warnings.showwarning = self._show_warning
+            return super().main(*args, **kwargs)
+
+    def _show_warning(self, message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, _GEOBLOCK_WARNINGS):
+            if self.quiet:
+                return
+            text = _one_line(str(message))
+        else:
+            text = f"{category.__name__}: {_one_line(str(message))}"
+        click.echo(f"Warning: {text}", err=True)
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except _CLICK_FLOW:
+            raise
+        except Exception as exc:
+            if isinstance(exc, OSError) and exc.errno == errno.EPIPE:
+                raise  # click silences a closed pipe (geoblock ... | head)
+            message = error_message(exc)
+            if self.verbose:
+                click.echo("".join(traceback.format_exception(exc)), err=True, nl=False)
+            elif not isinstance(exc, GeoblockError | OSError):
+                message += " (run 'geoblock --verbose ...' to see the traceback)"
+            raise click.ClickException(message) from exc
+
+
+def _set_flag(ctx: click.Context, param: click.Parameter, value: bool) -> bool:
+    root = ctx.find_root().command
+    if value and isinstance(root, GeoblockGroup):
+        setattr(root, param.name or "", True)
+    return value
+
+
+def _version() -> str:
+    import geoblock
+
+    return geoblock.__version__
+
+
+def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
+    """A new ``geoblock`` command group.
+
+    Parameters
+    ----------
+    plugin_manager : pluggy.PluginManager, optional
+        Where plugin commands (and ``geoblock plugins``' listing) come from; default the
+        process-wide :func:`geoblock.plugins.get_plugin_manager`. Tests pass
+        ``geoblock.plugins.create_plugin_manager(entry_points=False, plugins=[...])``.
+
+    Returns
+    -------
+    GeoblockGroup
+    """
+    from geoblock.cli.info import info
+    from geoblock.cli.plugins import plugins
+    from geoblock.cli.project import backproject, project
+
+    @click.group(
+        cls=GeoblockGroup,
+        name="geoblock",
+        plugin_manager=plugin_manager,
+        context_settings={"help_option_names": ["-h", "--help"]},
+    )
+    @click.version_option(
+        version=_version(), prog_name="geoblock", message="%(prog)s %(version)s"
+    )
+    @click.option(
+        "-v", "--verbose", is_flag=True, is_eager=True, expose_value=False,
+        callback=_set_flag, help="Show the full traceback of errors.",
+    )
+    @click.option(
+        "-q", "--quiet", is_flag=True, is_eager=True, expose_value=False,
+        callback=_set_flag, help="Do not show geoblock's warnings.",
+    )
+    def cli() -> None:
+        """geoblock: geometric processing of optical satellite images.
+
+        Sensor models come from plugins ('geoblock plugins' lists them). Coordinates follow
+        geoblock's conventions: lon, lat in degrees and h in metres above the WGS84 ellipsoid;
+        row, col in pixels with (0, 0) at the centre of the first pixel.
+
+        \b
+        Examples:
+          geoblock plugins
+          geoblock info scene.json
+          geoblock project scene.json gcps.csv -o gcps_image.csv
+          geoblock -v backproject scene.json measures.csv
+        """
+
+    for command in (plugins, info, project, backproject):
+        cli.add_command(command)
+    return cli  # type: ignore[return-value]
+
+
+#: The group over the process-wide plugin manager (its plugin commands load on first use), for
+#: ``CliRunner().invoke(cli, [...])`` and for embedding; :func:`main` builds a fresh one per run.
+cli = build_cli()
+
+
+def main(args: Sequence[str] | None = None) -> Any:
+    """Console-script entry point: ``geoblock [OPTIONS] COMMAND [ARGS]...``."""
+    return build_cli().main(args=args, prog_name="geoblock")
