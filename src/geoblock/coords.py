@@ -71,13 +71,14 @@ def geodetic_to_ecef(lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> EcefCoords
     lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
     lam = np.radians(lon)
     phi = np.radians(lat)
-    sin_phi = np.sin(phi)
-    cos_phi = np.cos(phi)
-    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sin_phi**2)
-    x = (n + h) * cos_phi * np.cos(lam)
-    y = (n + h) * cos_phi * np.sin(lam)
-    z = (n * (1.0 - WGS84_E2) + h) * sin_phi
-    return EcefCoords(x, y, z)
+    with np.errstate(invalid="ignore"):  # non-finite in, NaN out
+        sin_phi = np.sin(phi)
+        cos_phi = np.cos(phi)
+        n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sin_phi**2)
+        x = (n + h) * cos_phi * np.cos(lam)
+        y = (n + h) * cos_phi * np.sin(lam)
+        z = (n * (1.0 - WGS84_E2) + h) * sin_phi
+    return EcefCoords(*_nan_where_invalid((lon, lat, h), (x, y, z)))
 
 
 def ecef_to_geodetic(x: ArrayLike, y: ArrayLike, z: ArrayLike) -> GroundCoords:
@@ -117,7 +118,13 @@ def ecef_to_geodetic(x: ArrayLike, y: ArrayLike, z: ArrayLike) -> GroundCoords:
         lat = np.degrees(2.0 * np.arctan2(z, d + dz))
         h = (k + e2 - 1.0) / k * dz
     lon = np.degrees(np.arctan2(y, x))
-    return GroundCoords(lon, lat, h)
+    return GroundCoords(*_nan_where_invalid((x, y, z), (lon, lat, h)))
+
+
+def _nan_where_invalid(inputs, outputs):
+    """NaN in, NaN out: every output is NaN where any input is not finite."""
+    bad = ~(np.isfinite(inputs[0]) & np.isfinite(inputs[1]) & np.isfinite(inputs[2]))
+    return tuple(np.where(bad, np.nan, o) for o in outputs)
 
 
 def enu_rotation(lon: ArrayLike, lat: ArrayLike) -> Float64Array:
@@ -137,8 +144,9 @@ def enu_rotation(lon: ArrayLike, lat: ArrayLike) -> Float64Array:
     lon, lat = broadcast_float64(lon=lon, lat=lat)
     lam = np.radians(lon)
     phi = np.radians(lat)
-    sl, cl = np.sin(lam), np.cos(lam)
-    sp, cp = np.sin(phi), np.cos(phi)
+    with np.errstate(invalid="ignore"):  # non-finite in, NaN out
+        sl, cl = np.sin(lam), np.cos(lam)
+        sp, cp = np.sin(phi), np.cos(phi)
     zero = np.zeros_like(sl)
     rows = [
         [-sl, cl, zero],
@@ -202,8 +210,9 @@ def geodetic_to_ecef_jacobian(lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> F
     lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
     lam = np.radians(lon)
     phi = np.radians(lat)
-    sl, cl = np.sin(lam), np.cos(lam)
-    sp, cp = np.sin(phi), np.cos(phi)
+    with np.errstate(invalid="ignore"):  # non-finite in, NaN out
+        sl, cl = np.sin(lam), np.cos(lam)
+        sp, cp = np.sin(phi), np.cos(phi)
     w2 = 1.0 - WGS84_E2 * sp * sp
     n = WGS84_A / np.sqrt(w2)
     m = WGS84_A * (1.0 - WGS84_E2) / w2**1.5  # meridian radius of curvature

@@ -163,3 +163,15 @@ def test_transformer_is_cached_per_thread():
     assert a is coords.transformer("EPSG:4326", 32632)
     x, y = a.transform(9.0, 0.0)
     assert abs(x - 500000.0) < 1e-6
+
+
+def test_non_finite_in_nan_out_silently():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for bad in (np.nan, np.inf, -np.inf):
+            assert np.all(np.isnan(coords.geodetic_to_ecef(bad, 0.0, 0.0)))
+            assert np.all(np.isnan(coords.ecef_to_geodetic(bad, 0.0, 0.0)[1:]))
+            assert np.isnan(coords.enu_rotation(bad, 0.0)).any()
+            assert np.isnan(coords.geodetic_to_ecef_jacobian(0.0, bad, 0.0)).any()

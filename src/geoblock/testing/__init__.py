@@ -1,7 +1,8 @@
 """The conformance kit for sensor-model authors (like ``xarray.testing``).
 
 * :func:`check_sensor_model` runs every contract check on a model and raises an
-  ``AssertionError`` that says what is wrong;
+  ``AssertionError`` that says what is wrong, where, and the likely cause; each check is also
+  its own function (``check_round_trip``, ``check_partials``, ...);
 * :class:`SensorModelContract` is a pytest class to subclass with a ``model`` fixture, one test
   per check;
 * :mod:`geoblock.testing.synthetic` holds analytic models, :mod:`geoblock.testing.strategies`
@@ -10,9 +11,44 @@
 ``SensorModelContract`` and the strategies need the ``testing`` extra (pytest, hypothesis).
 """
 
-from geoblock.testing.checks import check_sensor_model
+from geoblock.testing.checks import (
+    CHECKS,
+    check_dask_token,
+    check_footprint,
+    check_ground_partials,
+    check_metadata,
+    check_nan_isolation,
+    check_no_mutation,
+    check_parameter_partials,
+    check_parameter_perturbation,
+    check_partials,
+    check_pickle,
+    check_round_trip,
+    check_sensor_model,
+    check_serialization,
+    check_shapes,
+    check_with_parameters,
+)
 
-__all__ = ["SensorModelContract", "check_sensor_model"]
+__all__ = [
+    "CHECKS",
+    "SensorModelContract",
+    "check_dask_token",
+    "check_footprint",
+    "check_ground_partials",
+    "check_metadata",
+    "check_nan_isolation",
+    "check_no_mutation",
+    "check_parameter_partials",
+    "check_parameter_perturbation",
+    "check_partials",
+    "check_pickle",
+    "check_round_trip",
+    "check_sensor_model",
+    "check_serialization",
+    "check_shapes",
+    "check_with_parameters",
+]
 
 
 def __getattr__(name: str):
