@@ -28,6 +28,7 @@ __all__ = [
     "WGS84_F",
     "LocalFrame",
     "ecef_to_geodetic",
+    "ecef_to_geodetic_jacobian",
     "enu_offsets",
     "enu_rotation",
     "enu_to_ecef_jacobian",
@@ -221,6 +222,29 @@ def geodetic_to_ecef_jacobian(lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> F
     d_lat = np.stack([-(m + h) * sp * cl, -(m + h) * sp * sl, (m + h) * cp], axis=-1) * deg
     d_h = np.stack([cp * cl, cp * sl, sp], axis=-1)
     return np.stack([d_lon, d_lat, d_h], axis=-1)
+
+
+def ecef_to_geodetic_jacobian(lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+    """d(lon, lat, h)/d(x, y, z) at a geodetic point: the inverse of
+    :func:`geodetic_to_ecef_jacobian`.
+
+    Returns
+    -------
+    ndarray, (*S, 3, 3)
+        Rows: degrees of longitude per metre, degrees of latitude per metre, metres of height
+        per metre, against ECEF x, y, z.
+    """
+    lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
+    rot = enu_rotation(lon, lat)  # rows: east, north, up unit vectors
+    phi = np.radians(lat)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sp, cp = np.sin(phi), np.cos(phi)
+        w2 = 1.0 - WGS84_E2 * sp * sp
+        n = WGS84_A / np.sqrt(w2)
+        m = WGS84_A * (1.0 - WGS84_E2) / w2**1.5
+        deg = 180.0 / np.pi
+        scale = np.stack([deg / ((n + h) * cp), deg / (m + h), np.ones_like(h)], axis=-1)
+    return rot * scale[..., :, None]
 
 
 @dataclass(frozen=True)

@@ -175,3 +175,10 @@ def test_non_finite_in_nan_out_silently():
             assert np.all(np.isnan(coords.ecef_to_geodetic(bad, 0.0, 0.0)[1:]))
             assert np.isnan(coords.enu_rotation(bad, 0.0)).any()
             assert np.isnan(coords.geodetic_to_ecef_jacobian(0.0, bad, 0.0)).any()
+
+
+def test_ecef_to_geodetic_jacobian_inverts_the_forward_one():
+    lon, lat, h = np.array([7.0, -120.0, 179.9]), np.array([43.7, -60.0, 0.1]), np.array([0.0, 5000.0, 7e5])
+    inv = coords.ecef_to_geodetic_jacobian(lon, lat, h)
+    fwd = coords.geodetic_to_ecef_jacobian(lon, lat, h)
+    assert np.allclose(inv @ fwd, np.eye(3), atol=1e-10)

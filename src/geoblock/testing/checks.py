@@ -1145,6 +1145,8 @@ def _isolation(
                          f"{a.shape} without")
         if nan_at_bad:
             leaked_out = bad & ~np.isnan(b).reshape(bad.shape + (-1,)).all(-1)
+            if b.size == 0:
+                leaked_out = np.zeros_like(bad)
             if leaked_out.any():
                 i = int(np.flatnonzero(leaked_out)[0])
                 raise _error(check, model, f"{what}: a non-finite input gives a non-NaN {name}",
@@ -1152,6 +1154,8 @@ def _isolation(
                              hint="NaN in, NaN out: a point with a non-finite coordinate has NaN "
                              "results and status INVALID_INPUT")
         good = ~bad
+        if a.size == 0:  # e.g. the (*S, 2, 0) partials of a model without parameters
+            continue
         a_ok, b_ok = a[good].reshape(int(good.sum()), -1), b[good].reshape(int(good.sum()), -1)
         diff = np.max(np.abs(a_ok - b_ok), axis=-1)
         leak = ~(diff <= tol)

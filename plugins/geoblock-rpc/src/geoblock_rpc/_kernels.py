@@ -1,0 +1,265 @@
+"""numba kernels of the RPC00B model: projection, localisation, partials.
+
+Each kernel loops over points in parallel (``prange``) and handles one point from input to
+status, so no temporary arrays are made. The vectorised numpy reference is
+:mod:`geoblock_rpc.reference`; the tests check that both agree.
+
+Constants travel in one float64 array ``prm`` (see :func:`pack`) and the coefficients in a
+(4, 20) array ``[line_num, line_den, samp_num, samp_den]`` in RPC00B term order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+# contract (FMA) and reassociation only: NaN and inf must keep their meaning
+_FASTMATH = {"contract", "reassoc", "nsz", "arcp"}
+
+# indices into prm
+LAT_OFF, LONG_OFF, HEIGHT_OFF, LAT_SCALE, LONG_SCALE, HEIGHT_SCALE = range(6)
+LINE_OFF, SAMP_OFF, LINE_SCALE, SAMP_SCALE, LIMIT = range(6, 11)
+MIN_LONG, MAX_LONG, MIN_LAT, MAX_LAT, HAS_BOX = range(11, 16)
+N_PRM = 16
+
+CONVERGED, MAX_ITERATIONS, DIVERGED, OUT_OF_DOMAIN, INVALID_INPUT = 0, 1, 2, 3, 6
+
+
+def pack(rpc, limit: float, box: tuple[float, float, float, float] | None) -> np.ndarray:
+    """The constants array of a :class:`~geoblock_rpc.Rpc00b` for the kernels."""
+    prm = np.zeros(N_PRM)
+    prm[:11] = (rpc.lat_off, rpc.long_off, rpc.height_off, rpc.lat_scale, rpc.long_scale,
+                rpc.height_scale, rpc.line_off, rpc.samp_off, rpc.line_scale, rpc.samp_scale,
+                limit)
+    if box is not None:
+        prm[MIN_LONG:MAX_LAT + 1] = box
+        prm[HAS_BOX] = 1.0
+    return prm
+
+
+@njit(inline="always", fastmath=_FASTMATH)
+def _dot20(c, t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11, t12, t13, t14, t15, t16,
+           t17, t18, t19):
+    return (c[0] * t0 + c[1] * t1 + c[2] * t2 + c[3] * t3 + c[4] * t4 + c[5] * t5
+            + c[6] * t6 + c[7] * t7 + c[8] * t8 + c[9] * t9 + c[10] * t10 + c[11] * t11
+            + c[12] * t12 + c[13] * t13 + c[14] * t14 + c[15] * t15 + c[16] * t16
+            + c[17] * t17 + c[18] * t18 + c[19] * t19)
+
+
+@njit(inline="always", fastmath=_FASTMATH)
+def _ratios(coef, L, P, H):
+    """(line_n, samp_n): normalised row and column at normalised ground (L, P, H)."""
+    LP = L * P
+    LH = L * H
+    PH = P * H
+    LL = L * L
+    PP = P * P
+    HH = H * H
+    ln = _dot20(coef[0], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    ld = _dot20(coef[1], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    sn = _dot20(coef[2], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    sd = _dot20(coef[3], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    return ln / ld, sn / sd
+
+
+@njit(inline="always", fastmath=_FASTMATH)
+def _ratio_derivatives(cn, cd, L, P, H):
+    """One normalised coordinate N/D and its derivatives with respect to L, P and H."""
+    LP = L * P
+    LH = L * H
+    PH = P * H
+    LL = L * L
+    PP = P * P
+    HH = H * H
+    n = _dot20(cn, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    d = _dot20(cd, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    # derivatives of the 20 terms (see rpc00b.TERMS) with respect to L, P and H
+    n_l = _dot20(cn, 0.0, 1.0, 0.0, 0.0, P, H, 0.0, 2 * L, 0.0, 0.0, PH, 3 * LL, PP,
+                 HH, 2 * LP, 0.0, 0.0, 2 * LH, 0.0, 0.0)
+    d_l = _dot20(cd, 0.0, 1.0, 0.0, 0.0, P, H, 0.0, 2 * L, 0.0, 0.0, PH, 3 * LL, PP,
+                 HH, 2 * LP, 0.0, 0.0, 2 * LH, 0.0, 0.0)
+    n_p = _dot20(cn, 0.0, 0.0, 1.0, 0.0, L, 0.0, H, 0.0, 2 * P, 0.0, LH, 0.0, 2 * LP,
+                 0.0, LL, 3 * PP, HH, 0.0, 2 * PH, 0.0)
+    d_p = _dot20(cd, 0.0, 0.0, 1.0, 0.0, L, 0.0, H, 0.0, 2 * P, 0.0, LH, 0.0, 2 * LP,
+                 0.0, LL, 3 * PP, HH, 0.0, 2 * PH, 0.0)
+    n_h = _dot20(cn, 0.0, 0.0, 0.0, 1.0, 0.0, L, P, 0.0, 0.0, 2 * H, LP, 0.0, 0.0,
+                 2 * LH, 0.0, 0.0, 2 * PH, LL, PP, 3 * HH)
+    d_h = _dot20(cd, 0.0, 0.0, 0.0, 1.0, 0.0, L, P, 0.0, 0.0, 2 * H, LP, 0.0, 0.0,
+                 2 * LH, 0.0, 0.0, 2 * PH, LL, PP, 3 * HH)
+    r = n / d
+    return r, (n_l - r * d_l) / d, (n_p - r * d_p) / d, (n_h - r * d_h) / d
+
+
+@njit(inline="always")
+def _outside(prm, lon, lat, L, P, H):
+    limit = prm[LIMIT]
+    if abs(L) > limit or abs(P) > limit or abs(H) > limit:
+        return True
+    if prm[HAS_BOX] != 0.0:
+        span_lon = prm[MAX_LONG] - prm[MIN_LONG]
+        span_lat = prm[MAX_LAT] - prm[MIN_LAT]
+        d = lon - prm[MIN_LONG]
+        d -= 360.0 * np.floor((d + 180.0) / 360.0)  # wrap next to MIN_LONG
+        margin = 0.5 * (limit - 1.0)
+        if d < -margin * span_lon or d > (1.0 + margin) * span_lon:
+            return True
+        if lat < prm[MIN_LAT] - margin * span_lat or lat > prm[MAX_LAT] + margin * span_lat:
+            return True
+    return False
+
+
+@njit(inline="always")
+def _wrap_dlon(lon, long_off):
+    d = lon - long_off
+    return d - 360.0 * np.floor((d + 180.0) / 360.0)
+
+
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def project(lon, lat, h, prm, coef, row, col, status):  # pragma: no cover - numba
+    """Ground (degrees, metres) -> image (pixels) for every point; NaN and a status if not."""
+    for i in prange(lon.shape[0]):
+        x = lon[i]
+        y = lat[i]
+        z = h[i]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            row[i] = np.nan
+            col[i] = np.nan
+            status[i] = INVALID_INPUT
+            continue
+        L = _wrap_dlon(x, prm[LONG_OFF]) / prm[LONG_SCALE]
+        P = (y - prm[LAT_OFF]) / prm[LAT_SCALE]
+        H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+        if _outside(prm, x, y, L, P, H):
+            row[i] = np.nan
+            col[i] = np.nan
+            status[i] = OUT_OF_DOMAIN
+            continue
+        ln, sn = _ratios(coef, L, P, H)
+        r = ln * prm[LINE_SCALE] + prm[LINE_OFF]
+        c = sn * prm[SAMP_SCALE] + prm[SAMP_OFF]
+        if np.isfinite(r) and np.isfinite(c):
+            row[i] = r
+            col[i] = c
+            status[i] = CONVERGED
+        else:  # a zero denominator
+            row[i] = np.nan
+            col[i] = np.nan
+            status[i] = DIVERGED
+
+
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, status):  # pragma: no cover
+    """Image (pixels) at height h -> ground (degrees) by Newton in normalised (L, P).
+
+    Start: the solution of the RPC's first-order terms. Steps are analytic Newton steps,
+    clamped to 0.5 normalised units, and halved while they increase the pixel residual.
+    Converged when the residual is at most ``tol_px``; also when no step reduces a residual
+    that is already at most ``stall_px`` (float64's floor).
+    """
+    line_scale = prm[LINE_SCALE]
+    samp_scale = prm[SAMP_SCALE]
+    for i in prange(row.shape[0]):
+        r = row[i]
+        c = col[i]
+        z = h[i]
+        lon[i] = np.nan
+        lat[i] = np.nan
+        if not (np.isfinite(r) and np.isfinite(c) and np.isfinite(z)):
+            status[i] = INVALID_INPUT
+            continue
+        ln = (r - prm[LINE_OFF]) / line_scale
+        sn = (c - prm[SAMP_OFF]) / samp_scale
+        H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+        # first-order start: (n1 - ln d1) L + (n2 - ln d2) P = ln (d0 + d3 H) - n0 - n3 H
+        a11 = coef[0, 1] - ln * coef[1, 1]
+        a12 = coef[0, 2] - ln * coef[1, 2]
+        b1 = ln * (coef[1, 0] + coef[1, 3] * H) - coef[0, 0] - coef[0, 3] * H
+        a21 = coef[2, 1] - sn * coef[3, 1]
+        a22 = coef[2, 2] - sn * coef[3, 2]
+        b2 = sn * (coef[3, 0] + coef[3, 3] * H) - coef[2, 0] - coef[2, 3] * H
+        det = a11 * a22 - a12 * a21
+        L = 0.0
+        P = 0.0
+        if abs(det) > 1e-12 * (abs(a11 * a22) + abs(a12 * a21)):
+            L = (b1 * a22 - b2 * a12) / det
+            P = (a11 * b2 - a21 * b1) / det
+            if not (abs(L) < 2.0 and abs(P) < 2.0):
+                L = 0.0
+                P = 0.0
+        st = MAX_ITERATIONS
+        best = np.inf
+        step_l = 0.0
+        step_p = 0.0
+        for _ in range(max_iter):
+            rl, j11, j12, _ = _ratio_derivatives(coef[0], coef[1], L, P, H)
+            rs, j21, j22, _ = _ratio_derivatives(coef[2], coef[3], L, P, H)
+            f_l = rl - ln
+            f_s = rs - sn
+            err = max(abs(f_l) * line_scale, abs(f_s) * samp_scale)
+            if not np.isfinite(err):
+                st = DIVERGED
+                break
+            if err <= tol_px:
+                st = CONVERGED
+                break
+            if err >= best:
+                # no progress: float64's floor, or a step to halve
+                if best <= stall_px:
+                    L += step_l  # undo the last step: the previous point was better
+                    P += step_p
+                    st = CONVERGED
+                    break
+                step_l *= 0.5
+                step_p *= 0.5
+                L += step_l
+                P += step_p
+                continue
+            best = err
+            dj = j11 * j22 - j12 * j21
+            if dj == 0.0 or not np.isfinite(dj):
+                st = DIVERGED
+                break
+            step_l = (f_l * j22 - f_s * j12) / dj
+            step_p = (j11 * f_s - j21 * f_l) / dj
+            size = max(abs(step_l), abs(step_p))
+            if size > 0.5:
+                step_l *= 0.5 / size
+                step_p *= 0.5 / size
+            L -= step_l
+            P -= step_p
+            if abs(L) > 10.0 or abs(P) > 10.0:
+                st = DIVERGED
+                break
+        if st != CONVERGED:
+            status[i] = st
+            continue
+        x = prm[LONG_OFF] + L * prm[LONG_SCALE]
+        x -= 360.0 * np.floor((x + 180.0) / 360.0)
+        y = prm[LAT_OFF] + P * prm[LAT_SCALE]
+        if _outside(prm, x, y, L, P, H):
+            status[i] = OUT_OF_DOMAIN
+            continue
+        lon[i] = x
+        lat[i] = y
+        status[i] = CONVERGED
+
+
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def partials_geodetic(lon, lat, h, prm, coef, out):  # pragma: no cover - numba
+    """d(row, col)/d(lon, lat, h) in pixels per degree, degree, metre: out (N, 2, 3)."""
+    for i in prange(lon.shape[0]):
+        L = _wrap_dlon(lon[i], prm[LONG_OFF]) / prm[LONG_SCALE]
+        P = (lat[i] - prm[LAT_OFF]) / prm[LAT_SCALE]
+        H = (h[i] - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+        for k in range(2):
+            _, r_l, r_p, r_h = _ratio_derivatives(coef[2 * k], coef[2 * k + 1], L, P, H)
+            scale = prm[LINE_SCALE] if k == 0 else prm[SAMP_SCALE]
+            out[i, k, 0] = r_l * scale / prm[LONG_SCALE]
+            out[i, k, 1] = r_p * scale / prm[LAT_SCALE]
+            out[i, k, 2] = r_h * scale / prm[HEIGHT_SCALE]

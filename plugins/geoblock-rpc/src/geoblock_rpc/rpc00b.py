@@ -1,0 +1,234 @@
+"""RPC00B coefficients: the vendor rational polynomial model, GDAL's conventions.
+
+Normalisation (GDAL ``alg/gdal_rpc.cpp``; RPC00B)::
+
+    L = (lon - LONG_OFF) / LONG_SCALE      (lon - LONG_OFF wrapped into [-180, 180))
+    P = (lat - LAT_OFF) / LAT_SCALE
+    H = (h - HEIGHT_OFF) / HEIGHT_SCALE    (h: metres above the WGS84 ellipsoid)
+    row = LINE_NUM(L, P, H) / LINE_DEN(L, P, H) * LINE_SCALE + LINE_OFF
+    col = SAMP_NUM(L, P, H) / SAMP_DEN(L, P, H) * SAMP_SCALE + SAMP_OFF
+
+with the 20 cubic terms in RPC00B order (:data:`TERMS`). ``row, col`` are RPC00B-native, which
+is geoblock's convention: ``(0, 0)`` is the centre of the first pixel (GDAL's pixel/line adds
+0.5). Readers convert other conventions (DIMAP's 1-based offsets) once, when reading.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from geoblock.errors import ModelFormatError
+
+__all__ = ["GDAL_KEYS", "TERMS", "Rpc00b", "evaluate_terms"]
+
+#: RPC00B term order (GDAL, NITF RPC00B, DigitalGlobe RPB, DIMAP v2 all use it)
+TERMS: tuple[str, ...] = (
+    "1", "L", "P", "H", "L*P", "L*H", "P*H", "L^2", "P^2", "H^2",
+    "P*L*H", "L^3", "L*P^2", "L*H^2", "L^2*P", "P^3", "P*H^2", "L^2*H", "P^2*H", "H^3",
+)
+
+_SCALARS = (
+    "line_off", "samp_off", "lat_off", "long_off", "height_off",
+    "line_scale", "samp_scale", "lat_scale", "long_scale", "height_scale",
+)
+_POLYS = ("line_num", "line_den", "samp_num", "samp_den")
+_OPTIONAL = ("min_long", "min_lat", "max_long", "max_lat", "err_bias", "err_rand")
+
+#: field name -> GDAL ``RPC`` metadata-domain key
+GDAL_KEYS: dict[str, str] = {
+    **{name: name.upper() for name in _SCALARS},
+    "line_num": "LINE_NUM_COEFF",
+    "line_den": "LINE_DEN_COEFF",
+    "samp_num": "SAMP_NUM_COEFF",
+    "samp_den": "SAMP_DEN_COEFF",
+    **{name: name.upper() for name in _OPTIONAL},
+}
+
+
+def _coefficients(value: Any, name: str, source: str) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64).ravel()
+    if arr.shape != (20,) or not np.all(np.isfinite(arr)):
+        raise ModelFormatError(
+            f"{source}: {GDAL_KEYS[name]} must be 20 finite numbers, got {arr.size} "
+            f"({'non-finite values' if arr.size == 20 else 'wrong count'})"
+        )
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Rpc00b:
+    """The coefficients of one RPC00B model (immutable).
+
+    Offsets are in geoblock's pixel-centre convention (as in RPC00B / GDAL metadata); angles
+    are degrees and heights metres above the WGS84 ellipsoid. Optional fields are ``None``
+    when the file does not give them (GDAL writes -1 for unknown ``ERR_BIAS``/``ERR_RAND``).
+
+    Parameters
+    ----------
+    line_off, samp_off, lat_off, long_off, height_off : float
+    line_scale, samp_scale, lat_scale, long_scale, height_scale : float
+        Non-zero.
+    line_num, line_den, samp_num, samp_den : array_like, (20,)
+        Coefficients in RPC00B term order (:data:`TERMS`).
+    min_long, min_lat, max_long, max_lat : float, optional
+        Validity box, degrees.
+    err_bias, err_rand : float, optional
+        Vendor a-priori accuracy, metres (bias and random, 1 sigma, horizontal).
+    source : str
+        Where the coefficients came from (named in error messages; not part of the value).
+    """
+
+    line_off: float
+    samp_off: float
+    lat_off: float
+    long_off: float
+    height_off: float
+    line_scale: float
+    samp_scale: float
+    lat_scale: float
+    long_scale: float
+    height_scale: float
+    line_num: np.ndarray
+    line_den: np.ndarray
+    samp_num: np.ndarray
+    samp_den: np.ndarray
+    min_long: float | None = None
+    min_lat: float | None = None
+    max_long: float | None = None
+    max_lat: float | None = None
+    err_bias: float | None = None
+    err_rand: float | None = None
+    source: str = field(default="<rpc>", compare=False)
+
+    def __post_init__(self) -> None:
+        for name in _SCALARS:
+            try:
+                value = float(getattr(self, name))
+            except (TypeError, ValueError):
+                raise ModelFormatError(
+                    f"{self.source}: {GDAL_KEYS[name]} is not a number: {getattr(self, name)!r}"
+                ) from None
+            if not math.isfinite(value):
+                raise ModelFormatError(f"{self.source}: {GDAL_KEYS[name]} is not finite")
+            if name.endswith("_scale") and value == 0.0:
+                raise ModelFormatError(f"{self.source}: {GDAL_KEYS[name]} is zero")
+            object.__setattr__(self, name, value)
+        for name in _POLYS:
+            object.__setattr__(self, name, _coefficients(getattr(self, name), name, self.source))
+        for name in _OPTIONAL:
+            value = getattr(self, name)
+            if value is not None:
+                value = float(value)
+                if not math.isfinite(value) or (name.startswith("err_") and value < 0):
+                    value = None  # -1 means unknown in GDAL metadata
+                object.__setattr__(self, name, value)
+        if self.line_den[0] == 0.0 or self.samp_den[0] == 0.0:
+            raise ModelFormatError(
+                f"{self.source}: the constant term of LINE_DEN_COEFF or SAMP_DEN_COEFF is zero"
+            )
+
+    # ------------------------------------------------------------------ conversions
+    @property
+    def coefficients(self) -> np.ndarray:
+        """(4, 20) ``[line_num, line_den, samp_num, samp_den]``."""
+        return np.stack([self.line_num, self.line_den, self.samp_num, self.samp_den])
+
+    @property
+    def has_validity_box(self) -> bool:
+        """Whether MIN/MAX_LONG/LAT are all given (and not GDAL's +-180/90 defaults)."""
+        box = (self.min_long, self.min_lat, self.max_long, self.max_lat)
+        return None not in box and box != (-180.0, -90.0, 180.0, 90.0)
+
+    def replace(self, **changes: Any) -> Rpc00b:
+        """A copy with some fields changed (e.g. ``line_off`` for a crop)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(changes)
+        return Rpc00b(**values)
+
+    @classmethod
+    def from_gdal(cls, metadata: Mapping[str, Any], source: str = "<rpc>") -> Rpc00b:
+        """From GDAL ``RPC`` metadata-domain items (``rasterio`` ``RPC.to_gdal()`` output too).
+
+        Numbers may carry unit suffixes (``"+015834.00 pixels"``) as in ``_RPC.TXT`` files;
+        coefficient lists are 20 whitespace-separated numbers or sequences.
+        """
+        md = {str(k).upper(): v for k, v in metadata.items()}
+        missing = [GDAL_KEYS[n] for n in _SCALARS + _POLYS if GDAL_KEYS[n] not in md]
+        if missing:
+            raise ModelFormatError(f"{source}: not an RPC00B model: missing {', '.join(missing)}")
+        kwargs: dict[str, Any] = {"source": source}
+        for name in _SCALARS + _OPTIONAL:
+            key = GDAL_KEYS[name]
+            if key in md:
+                kwargs[name] = _number(md[key], key, source)
+        for name in _POLYS:
+            raw = md[GDAL_KEYS[name]]
+            items = raw.split() if isinstance(raw, str) else list(raw)
+            kwargs[name] = [_number(v, GDAL_KEYS[name], source) for v in items]
+        return cls(**kwargs)
+
+    def to_gdal(self) -> dict[str, str]:
+        """GDAL ``RPC`` metadata-domain items (shortest round-tripping decimal text)."""
+        out = {}
+        for name in _SCALARS:
+            out[GDAL_KEYS[name]] = repr(getattr(self, name))
+        for name in _POLYS:
+            out[GDAL_KEYS[name]] = " ".join(repr(float(v)) for v in getattr(self, name))
+        for name in _OPTIONAL:
+            value = getattr(self, name)
+            if value is not None:
+                out[GDAL_KEYS[name]] = repr(value)
+            elif name.startswith("err_"):
+                out[GDAL_KEYS[name]] = "-1"
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary (field names as keys; ``None`` for absent optional fields)."""
+        out: dict[str, Any] = {name: getattr(self, name) for name in _SCALARS + _OPTIONAL}
+        for name in _POLYS:
+            out[name] = [float(v) for v in getattr(self, name)]
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> Rpc00b:
+        """Inverse of :meth:`to_dict`."""
+        unknown = set(data) - set(_SCALARS + _POLYS + _OPTIONAL)
+        if unknown:
+            raise ModelFormatError(f"{source}: unknown RPC fields {sorted(unknown)}")
+        return cls(**dict(data), source=source)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Rpc00b):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.coefficients.ravel()) + (self.line_off, self.samp_off))
+
+
+def _number(value: Any, key: str, source: str) -> float:
+    if isinstance(value, int | float | np.number):
+        return float(value)
+    text = str(value).strip().split()
+    try:
+        return float(text[0])
+    except (IndexError, ValueError):
+        raise ModelFormatError(f"{source}: {key} is not a number: {value!r}") from None
+
+
+def evaluate_terms(l: np.ndarray, p: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """The 20 RPC00B terms of normalised coordinates, (*S, 20), in :data:`TERMS` order."""
+    return np.stack(
+        [
+            np.ones_like(l), l, p, h, l * p, l * h, p * h, l * l, p * p, h * h,
+            p * l * h, l**3, l * p * p, l * h * h, l * l * p, p**3, p * h * h, l * l * h,
+            p * p * h, h**3,
+        ],
+        axis=-1,
+    )
