@@ -35,3 +35,12 @@ def pushbroom() -> ConstantVelocityPushbroom:
 def synthetic_model(request, affine_camera, pushbroom):
     """Each synthetic model: one implements ground->image, the other image->ground."""
     return {"affine": affine_camera, "pushbroom": pushbroom}[request.param]
+
+
+def pytest_sessionstart(session):
+    """In CI (CI=true) the shared data must be present: skipped real-data tests prove nothing."""
+    if os.environ.get("CI", "").lower() in ("true", "1") and not DATA_DIR.is_dir():
+        raise pytest.UsageError(
+            f"CI=true but the real test data is missing at {DATA_DIR}; CI clones shared/ beside "
+            "the repository (or set GEOBLOCK_TEST_DATA)"
+        )

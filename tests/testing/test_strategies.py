@@ -77,3 +77,42 @@ def test_array_strategies_draw_arrays():
         np.testing.assert_allclose(lat, ground.lat, rtol=0, atol=1e-9)
 
     vectorised()
+
+
+
+class _Fixed:  # filled below: a module-level class so that it pickles
+    pass
+
+
+def _make_fixed():
+    from geoblock import ParameterSet
+    from geoblock.testing.synthetic import AffineCamera
+
+    class Fixed(AffineCamera):
+        """An affine camera without parameters (like an RPC)."""
+
+        name = "test-fixed"
+
+        @property
+        def parameters(self):
+            return ParameterSet.empty()
+
+        def with_parameters(self, values):
+            ParameterSet.empty().with_values(values)
+            return self
+
+        def partials_parameters(self, lon, lat, h):
+            return super().partials_parameters(lon, lat, h)[..., :0]
+
+    Fixed.__qualname__ = Fixed.__name__ = "_Fixed"
+    return Fixed
+
+
+_Fixed = _make_fixed()
+
+
+def test_kit_accepts_a_model_without_parameters():
+    """Regression: the NaN-isolation check reduced over the empty (*S, 2, 0) partials."""
+    from geoblock.testing import check_sensor_model
+
+    check_sensor_model(_Fixed.example(), skip=("check_serialization", "check_with_parameters"))

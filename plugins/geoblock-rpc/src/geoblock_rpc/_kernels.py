@@ -19,15 +19,18 @@ _FASTMATH = {"contract", "reassoc", "nsz", "arcp"}
 # indices into prm
 LAT_OFF, LONG_OFF, HEIGHT_OFF, LAT_SCALE, LONG_SCALE, HEIGHT_SCALE = range(6)
 LINE_OFF, SAMP_OFF, LINE_SCALE, SAMP_SCALE, LIMIT = range(6, 11)
-MIN_LONG, MAX_LONG, MIN_LAT, MAX_LAT, HAS_BOX = range(11, 16)
-N_PRM = 16
+MIN_LONG, MAX_LONG, MIN_LAT, MAX_LAT, HAS_BOX, HEIGHT_LIMIT = range(11, 17)
+N_PRM = 17
 
 CONVERGED, MAX_ITERATIONS, DIVERGED, OUT_OF_DOMAIN, INVALID_INPUT = 0, 1, 2, 3, 6
 
 
-def pack(rpc, limit: float, box: tuple[float, float, float, float] | None) -> np.ndarray:
+def pack(
+    rpc, limit: float, height_limit: float, box: tuple[float, float, float, float] | None
+) -> np.ndarray:
     """The constants array of a :class:`~geoblock_rpc.Rpc00b` for the kernels."""
     prm = np.zeros(N_PRM)
+    prm[HEIGHT_LIMIT] = height_limit
     prm[:11] = (rpc.lat_off, rpc.long_off, rpc.height_off, rpc.lat_scale, rpc.long_scale,
                 rpc.height_scale, rpc.line_off, rpc.samp_off, rpc.line_scale, rpc.samp_scale,
                 limit)
@@ -99,7 +102,7 @@ def _ratio_derivatives(cn, cd, L, P, H):
 @njit(inline="always")
 def _outside(prm, lon, lat, L, P, H):
     limit = prm[LIMIT]
-    if abs(L) > limit or abs(P) > limit or abs(H) > limit:
+    if abs(L) > limit or abs(P) > limit or abs(H) > prm[HEIGHT_LIMIT]:
         return True
     if prm[HAS_BOX] != 0.0:
         span_lon = prm[MAX_LONG] - prm[MIN_LONG]
@@ -176,6 +179,9 @@ def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, statu
         ln = (r - prm[LINE_OFF]) / line_scale
         sn = (c - prm[SAMP_OFF]) / samp_scale
         H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+        if abs(H) > prm[HEIGHT_LIMIT]:
+            status[i] = OUT_OF_DOMAIN
+            continue
         # first-order start: (n1 - ln d1) L + (n2 - ln d2) P = ln (d0 + d3 H) - n0 - n3 H
         a11 = coef[0, 1] - ln * coef[1, 1]
         a12 = coef[0, 2] - ln * coef[1, 2]

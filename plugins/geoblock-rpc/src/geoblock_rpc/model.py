@@ -36,10 +36,15 @@ class RpcModel(SensorModelBase):
         ``(rows, cols)`` of the image. Files that do not state it (most RPC text formats) get
         ``ceil(OFF + SCALE + 0.5)`` per axis: the extent the RPC was fitted over.
     domain_limit : float
-        Validity domain: points whose normalised ``L, P`` or ``H`` exceed this magnitude
-        (RPC00B is fitted on [-1, 1]; GDAL flags above 1.5), or that lie farther than
-        ``(domain_limit - 1) / 2`` of the box size outside MIN/MAX_LONG/LAT when the file gives
-        that box, get status OUT_OF_DOMAIN and NaN.
+        Horizontal validity domain: points whose normalised ``L`` or ``P`` exceed this
+        magnitude (RPC00B is fitted on [-1, 1]; GDAL flags above 1.5), or that lie farther
+        than ``(domain_limit - 1) / 2`` of the box size outside MIN/MAX_LONG/LAT when the file
+        gives that box, get status OUT_OF_DOMAIN and NaN.
+    height_limit : float
+        Vertical validity domain: ``|H| <= height_limit``, i.e. heights within
+        ``HEIGHT_OFF +/- height_limit * HEIGHT_SCALE``. Looser than the horizontal limit because
+        vendors often fit over a narrow height range (12.5 m in GDAL's test_transformer_11)
+        and the height terms extrapolate gently; GDAL checks no domain at all.
 
     Notes
     -----
@@ -62,6 +67,7 @@ class RpcModel(SensorModelBase):
         shape: tuple[int, int] | None = None,
         *,
         domain_limit: float = 1.5,
+        height_limit: float = 5.0,
     ) -> None:
         if not isinstance(rpc, Rpc00b):
             raise TypeError(f"RpcModel needs an Rpc00b, got {type(rpc).__name__}")
@@ -75,10 +81,14 @@ class RpcModel(SensorModelBase):
         if min(self._shape) < 1:
             raise ValueError(f"RpcModel: shape must be positive, got {self._shape}")
         self._domain_limit = float(domain_limit)
-        if not self._domain_limit >= 1.0:
-            raise ValueError(f"RpcModel: domain_limit must be >= 1, got {domain_limit!r}")
+        self._height_limit = float(height_limit)
+        if not (self._domain_limit >= 1.0 and self._height_limit >= 1.0):
+            raise ValueError(
+                f"RpcModel: domain_limit and height_limit must be >= 1, got {domain_limit!r}, "
+                f"{height_limit!r}"
+            )
         box = (rpc.min_long, rpc.max_long, rpc.min_lat, rpc.max_lat) if rpc.has_validity_box else None
-        self._prm = _kernels.pack(rpc, self._domain_limit, box)
+        self._prm = _kernels.pack(rpc, self._domain_limit, self._height_limit, box)
         self._coef = np.ascontiguousarray(rpc.coefficients)
 
     @classmethod
@@ -134,7 +144,8 @@ class RpcModel(SensorModelBase):
 
     def with_shape(self, shape: tuple[int, int]) -> Self:
         """The same RPC with another image shape."""
-        return type(self)(self._rpc, shape, domain_limit=self._domain_limit)
+        return type(self)(self._rpc, shape, domain_limit=self._domain_limit,
+                          height_limit=self._height_limit)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -142,6 +153,7 @@ class RpcModel(SensorModelBase):
             "schema_version": self.schema_version,
             "shape": list(self._shape),
             "domain_limit": self._domain_limit,
+            "height_limit": self._height_limit,
             "rpc": self._rpc.to_dict(),
         }
 
@@ -149,7 +161,8 @@ class RpcModel(SensorModelBase):
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
         try:
             rpc = Rpc00b.from_dict(data["rpc"], source="model dictionary")
-            return cls(rpc, tuple(data["shape"]), domain_limit=data.get("domain_limit", 1.5))
+            return cls(rpc, tuple(data["shape"]), domain_limit=data.get("domain_limit", 1.5),
+                       height_limit=data.get("height_limit", 5.0))
         except KeyError as exc:
             raise SerializationError(f"rpc model dictionary misses {exc}") from None
 
