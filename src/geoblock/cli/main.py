@@ -240,6 +240,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     from geoblock.cli.info import info
     from geoblock.cli.plugins import plugins
     from geoblock.cli.project import backproject, project
+    from geoblock.cli.refine import refine
 
     @click.group(
         cls=GeoblockGroup,
@@ -275,6 +276,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
 
     for command in (plugins, info, project, backproject):
         cli.add_command(command)
+    cli.add_command(refine)
     return cli  # type: ignore[return-value]
 
 

@@ -132,7 +132,13 @@ class RpcModel(SensorModelBase):
 
     @property
     def domain_limit(self) -> float:
+        """Horizontal validity limit on the normalised L, P."""
         return self._domain_limit
+
+    @property
+    def height_limit(self) -> float:
+        """Vertical validity limit on the normalised H."""
+        return self._height_limit
 
     @property
     def parameters(self) -> ParameterSet:

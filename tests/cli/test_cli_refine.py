@@ -1,0 +1,182 @@
+"""geoblock refine: GCP/ICP files in, report out, refined model written (any model)."""
+
+from __future__ import annotations
+
+import csv
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+import geoblock
+from geoblock import ImageCorrection
+from geoblock.errors import GeoblockWarning
+
+TRUE = {0: [2.0, -1.5], 1: [2.0, 1.2, -0.7, -1.5, 0.4, 2.2]}
+
+
+def _simulate(model, order, n, seed):
+    """Points of ``ImageCorrection(model, order, TRUE)``: random image points, random heights."""
+    distorted = ImageCorrection(model, order, TRUE[order])
+    rng = np.random.default_rng(seed)
+    rows, cols = model.shape
+    lo, hi = model.height_range
+    row = rng.uniform(0, rows - 1, n)
+    col = rng.uniform(0, cols - 1, n)
+    h = rng.uniform(lo, hi, n)
+    (lon, lat, _), status = distorted.backproject_with_status(row, col, h)
+    assert np.all(status == 0)
+    return lon, lat, h, row, col
+
+
+def _write(path, model, order, n, seed, prefix="p", kinds=None):
+    lon, lat, h, row, col = _simulate(model, order, n, seed)
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["id", "lon", "lat", "h", "row", "col"] + (["kind"] if kinds else []))
+        for i in range(n):
+            extra = [kinds[i]] if kinds else []
+            w.writerow([f"{prefix}{i}", *(repr(float(v[i])) for v in (lon, lat, h, row, col)),
+                        *extra])
+    return str(path)
+
+
+@pytest.fixture
+def points(tmp_path, affine):
+    return {
+        "gcps": _write(tmp_path / "gcps.csv", affine, 1, 8, 1, "g"),
+        "icps": _write(tmp_path / "icps.csv", affine, 1, 12, 2, "c"),
+    }
+
+
+def test_refine_order1_with_icps(runner, cli, model_path, points, tmp_path):
+    out = tmp_path / "out.json"
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "--icps",
+                                 points["icps"], "--order", "1", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    text = result.stdout
+    for word in ("a0", "b2", "GCP residuals", "g7", "RMSE 2D", "mean E", "max N", "ICP"):
+        assert word in text
+    icp_line = next(line for line in text.splitlines() if line.startswith("ICP "))
+    assert int(icp_line.split()[1]) == 12
+    assert f"refined model written to {out} (json)" in text
+    refined = geoblock.open_model(out)
+    assert isinstance(refined, ImageCorrection) and refined.order == 1
+    np.testing.assert_allclose(refined.parameters.values, TRUE[1], atol=1e-6)
+
+
+def test_refine_default_output_beside_model(runner, cli, model_path, points, tmp_path):
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "--order", "0"])
+    assert result.exit_code == 0, result.output
+    out = tmp_path / "affine.refined.json"
+    assert out.is_file() and str(out) in result.stdout
+    assert geoblock.open_model(out).order == 0
+    assert not any(line.startswith("ICP ") for line in result.stdout.splitlines())
+
+
+def test_refine_points_with_kind_column(runner, cli, model_path, affine, tmp_path):
+    kinds = ["gcp", "icp", "GCP", "icp", "gcp", "gcp", "icp", "gcp", "icp", "gcp"]
+    path = _write(tmp_path / "all.csv", affine, 1, 10, 3, kinds=kinds)
+    out = tmp_path / "r.json"
+    result = runner.invoke(cli, ["refine", model_path, "--points", path, "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    counts = {line.split()[0]: int(line.split()[1]) for line in result.stdout.splitlines()
+              if re.match(r"(GCP|ICP) +\d", line)}
+    assert counts == {"GCP": 6, "ICP": 4}
+    np.testing.assert_allclose(geoblock.open_model(out).parameters.values, TRUE[1], atol=1e-6)
+
+
+def test_refine_too_few_gcps_states_minimum(runner, cli, model_path, affine, tmp_path):
+    gcps = _write(tmp_path / "two.csv", affine, 1, 2, 4)
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", gcps, "--order", "1",
+                                 "-o", str(tmp_path / "x.json")])
+    assert result.exit_code == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: ")
+    assert "at least 3 GCPs" in lines[0]
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_refine_sigma_px_scales_sigma0(runner, cli, model_path, affine, tmp_path):
+    lon, lat, h, row, col = _simulate(affine, 1, 10, 5)
+    rng = np.random.default_rng(0)
+    path = tmp_path / "noisy.csv"
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["id", "lon", "lat", "h", "row", "col"])
+        for i in range(10):
+            w.writerow([i, lon[i], lat[i], h[i], row[i] + rng.normal(0, 0.5),
+                        col[i] + rng.normal(0, 0.5)])
+
+    def sigma0(extra):
+        result = runner.invoke(cli, ["refine", model_path, "--gcps", str(path),
+                                     "-o", str(tmp_path / "s.json"), *extra])
+        assert result.exit_code == 0, result.output
+        return float(result.stdout.split("sigma0 ")[1].split(",")[0])
+
+    assert sigma0(["--sigma-px", "0.25"]) == pytest.approx(2 * sigma0([]), rel=1e-3)
+
+
+def test_refine_write_reports_plugin_messages(runner, cli, model_path, points, tmp_path,
+                                              monkeypatch):
+    import geoblock.io
+
+    calls = []
+    real = geoblock.io.write_model
+
+    def fake(model, path, format=None, **options):
+        calls.append((format, str(path)))
+        if format == "fake-rpc":
+            warnings.warn("RPC00B approximate (refit): max error 1e-07 px", GeoblockWarning)
+            return path
+        return real(model, path, format=format, **options)
+
+    monkeypatch.setattr(geoblock.io, "write_model", fake)
+    out = tmp_path / "extra.json"
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"],
+                                 "-o", str(tmp_path / "main.json"),
+                                 "--write", f"fake-rpc:{tmp_path / 'x_RPC.TXT'}",
+                                 "--write", f"json:{out}"])
+    assert result.exit_code == 0, result.output
+    assert calls[1:] == [("fake-rpc", str(tmp_path / "x_RPC.TXT")), ("json", str(out))]
+    assert "  RPC00B approximate (refit): max error 1e-07 px" in result.stdout
+    assert out.is_file()
+
+
+def test_refine_write_unknown_format_is_one_error_line(runner, cli, model_path, points, tmp_path):
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"],
+                                 "-o", str(tmp_path / "m.json"),
+                                 "--write", f"no-such-format:{tmp_path / 'x.txt'}"])
+    assert result.exit_code == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: ") and "no-such-format" in lines[0]
+    assert (tmp_path / "m.json").is_file()  # the JSON was written before
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--write", ":x.json"], "FORMAT:PATH"),
+    (["--order", "3"], "--order"),
+    ([], "missing --gcps"),
+])
+def test_refine_usage_errors(runner, cli, model_path, args, message):
+    result = runner.invoke(cli, ["refine", model_path, *args])
+    assert result.exit_code == 2 and message in result.stderr
+
+
+def test_refine_points_and_gcps_are_exclusive(runner, cli, model_path, points):
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"],
+                                 "--points", points["icps"]])
+    assert result.exit_code == 2 and "not both" in result.stderr
+
+
+def test_refine_points_need_kind(runner, cli, model_path, points):
+    result = runner.invoke(cli, ["refine", model_path, "--points", points["gcps"]])
+    assert result.exit_code == 1 and "'kind' column" in result.stderr
+
+
+def test_refine_help_has_example(runner, cli):
+    result = runner.invoke(cli, ["refine", "--help"])
+    assert result.exit_code == 0
+    assert "Examples:" in result.stdout and "geoblock refine scene.json --gcps" in result.stdout
+    assert "refine" in runner.invoke(cli, ["--help"]).stdout
