@@ -18,9 +18,20 @@ __all__ = ["RpcModel"]
 
 
 def _flat(*arrays: ArrayLike, names: tuple[str, ...]) -> tuple[tuple[int, ...], list[np.ndarray]]:
-    """Broadcast named arguments and return their shape and contiguous flat float64 copies."""
-    from geoblock._array import broadcast_float64  # the same error messages as the core
+    """The broadcast shape and flat contiguous float64 views (copies only when needed).
 
+    The kernels never write their inputs, so float64 arrays of one shape pass without a copy
+    (24 MB saved per 10^6 points); anything else goes through the core's broadcasting, with
+    its error messages.
+    """
+    from geoblock._array import broadcast_float64
+
+    try:
+        arrs = [np.asarray(a, dtype=np.float64) for a in arrays]
+    except (TypeError, ValueError):
+        arrs = []
+    if arrs and all(a.shape == arrs[0].shape for a in arrs):
+        return arrs[0].shape, [np.ascontiguousarray(a).ravel() for a in arrs]
     out = broadcast_float64(**dict(zip(names, arrays, strict=True)))
     return out[0].shape, [np.ascontiguousarray(a).ravel() for a in out]
 
