@@ -69,19 +69,38 @@ def test_numba_projection_equals_the_numpy_reference(relative):
     assert np.max(np.abs(col[ok] - ref_col[ok])) <= 1e-12 * scale + 1e-9
 
 
-@pytest.mark.parametrize("relative", [None, *FILES])
-def test_localisation_round_trip_on_10k_points(relative):
-    """<= 1e-6 px over the image and the height range; statuses, never exceptions."""
-    model = RpcModel.example() if relative is None else open_rpc(relative)
+#: RPCs with image regions that no ground point maps to (checked below by a dense search)
+DEGENERATE = {"stereopipeline/tests/sample.RPB": 0.95}  # ASP disabled its own test of it
+
+
+def test_localisation_round_trip_on_10k_points(rpc_file):
+    """Every RPC file: <= 1e-6 px over the image and the height range; a status for the rest,
+    never an exception."""
+    model = open_rpc(rpc_file)
     r, c, h = image_sample(model, 10_000, seed=1)
     g, status = model.backproject_with_status(r, c, h)
-    assert set(np.unique(status)) <= {Status.CONVERGED, Status.OUT_OF_DOMAIN}
     ok = status == Status.CONVERGED
-    assert ok.mean() > 0.99, np.bincount(status)
+    assert ok.mean() >= DEGENERATE.get(rpc_file, 0.99), np.bincount(status)
     (row, col), pstatus = model.project_with_status(g.lon, g.lat, g.h)
     assert np.all(pstatus[ok] == Status.CONVERGED)
     assert np.max(np.hypot(row[ok] - r[ok], col[ok] - c[ok])) <= 1e-6
-    assert np.all(np.isnan(g.lon[~ok]))
+    assert np.all(np.isnan(g.lon[~ok])) and np.all(np.isnan(g.h[~ok]))
+
+
+def test_points_that_fail_on_a_degenerate_rpc_have_no_solution():
+    """sample.RPB (denominators with -7 P^2 terms) folds: image points without a ground
+    point get MAX_ITERATIONS, and a dense search confirms none lies within 1 px."""
+    model = open_rpc("stereopipeline/tests/sample.RPB")
+    rpc = model.rpc
+    r, c, h = image_sample(model, 2000, seed=1)
+    _, status = model.backproject_with_status(r, c, h)
+    failed = np.flatnonzero(status != Status.CONVERGED)[:4]
+    assert failed.size
+    big_l, big_p = np.meshgrid(np.linspace(-1.5, 1.5, 601), np.linspace(-1.5, 1.5, 601))
+    lon, lat = rpc.long_off + big_l * rpc.long_scale, rpc.lat_off + big_p * rpc.lat_scale
+    for i in failed:
+        row, col = reference.project(rpc, lon, lat, np.full(lon.shape, h[i]))
+        assert np.nanmin(np.hypot(row - r[i], col - c[i])) > 1.0
 
 
 def test_numba_localisation_agrees_with_the_generic_newton():
