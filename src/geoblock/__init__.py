@@ -6,9 +6,10 @@ adjustment, orthorectifier) see only the :class:`~geoblock.models.SensorModel` p
 
 from importlib.metadata import PackageNotFoundError, version
 
+from geoblock.dem import localize
 from geoblock.errors import GeoblockError, GeoblockWarning
 from geoblock.hookspecs import hookimpl
-from geoblock.io import open_model, read_points, write_model, write_points
+from geoblock.io import open_dem, open_model, read_points, write_model, write_points
 from geoblock.models import (
     ImageCorrection,
     ParameterSet,
@@ -40,6 +41,8 @@ __all__ = [
     "from_dict",
     "get_registry",
     "hookimpl",
+    "localize",
+    "open_dem",
     "open_model",
     "read_points",
     "write_model",

@@ -237,7 +237,9 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     -------
     GeoblockGroup
     """
+    from geoblock.cli.dem_info import dem_info
     from geoblock.cli.info import info
+    from geoblock.cli.localize import localize
     from geoblock.cli.plugins import plugins
     from geoblock.cli.project import backproject, project
     from geoblock.cli.refine import refine
@@ -277,6 +279,8 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     for command in (plugins, info, project, backproject):
         cli.add_command(command)
     cli.add_command(refine)
+    cli.add_command(localize)
+    cli.add_command(dem_info)
     return cli  # type: ignore[return-value]
 
 

@@ -2,8 +2,24 @@
 
 from geoblock.dem.base import DemBase
 from geoblock.dem.constant import ConstantDem
+from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.grid import GridDem
+from geoblock.dem.intersect import localize
 from geoblock.dem.protocol import DemSource
+from geoblock.dem.raster import BLOCK_CACHE, MosaicDem, RasterDem
 from geoblock.dem.sampling import INTERPOLATIONS
 
-__all__ = ["INTERPOLATIONS", "ConstantDem", "DemBase", "DemSource", "GridDem"]
+__all__ = [
+    "BLOCK_CACHE",
+    "INTERPOLATIONS",
+    "ConstantDem",
+    "ConstantGeoidDem",
+    "DemBase",
+    "DemSource",
+    "Geoid",
+    "GridDem",
+    "MosaicDem",
+    "RasterDem",
+    "find_geoid",
+    "localize",
+]

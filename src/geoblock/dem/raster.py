@@ -1,0 +1,728 @@
+"""File DEMs through rasterio: GeoTIFF, SRTM ``.hgt``, VRT, any GDAL raster; tiles mosaicked.
+
+:class:`RasterDem` samples one raster file, :class:`MosaicDem` a list of them (each point takes
+the first tile that has a height). Users normally call :func:`geoblock.open_dem`.
+
+Reading
+    The raster is read in square blocks (512 x 512 pixels, or the whole raster when it is at
+    most 2048 x 2048) with a 2-pixel halo, so that every nearest/bilinear/bicubic kernel of a
+    point lies inside one block. Blocks go to one process-wide, thread-safe LRU cache
+    (:data:`BLOCK_CACHE`, 256 MB by default, ``GEOBLOCK_DEM_CACHE_MB``) shared by every
+    ``RasterDem`` of the same file and options, hence by every call and every dask task in a
+    worker. Past the raster's outer edge the block repeats the edge pixels, and the points of
+    the half pixel between the outermost pixel centres and the raster edge are sampled at the
+    outermost centre (edge extension, which is what GDAL's warper gives for bilinear there).
+
+Vertical datum
+    Heights come out above the WGS84 ellipsoid. ``vertical=None`` takes the datum from the
+    file: a compound CRS whose vertical part is EGM96 height -> geoid; a 3-D geographic CRS
+    (EPSG:4979) -> ellipsoid; an SRTM ``.hgt`` tile (GDAL driver ``SRTMHGT``) -> geoid, because
+    the SRTM specification defines its heights above EGM96 (GDAL itself reports only
+    EPSG:4326 for them). Otherwise the file is refused with a :class:`~geoblock.errors.DemError`
+    that says to pass ``vertical="geoid"`` or ``vertical="ellipsoid"``. An explicit
+    ``vertical=`` always wins over the file.
+
+Nodata
+    ``nodata="nan"`` (default): nodata pixels and voids are NaN, and any kernel touching one
+    gives NaN with status ``NO_DEM``. A number: nodata pixels take that value (in the file's
+    own vertical datum and units, before the geoid is added). ``"fill"`` (alias
+    ``"nearest"``): voids are filled from their neighbours by ``rasterio.fill.fillnodata``
+    (GDAL's inverse-distance fill, search distance ``fill_distance`` pixels, no smoothing:
+    shareloc's ``"rio_fillnodata"``), block by block with a margin of ``fill_distance`` pixels.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import warnings
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyproj
+from affine import Affine
+
+from geoblock import coords
+from geoblock.dem.base import DemBase
+from geoblock.dem.geoid import Geoid, find_geoid
+from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
+from geoblock.dem.sampling import INTERPOLATIONS, sample
+from geoblock.errors import DemCoverageError, DemError
+
+__all__ = ["BLOCK_CACHE", "VERTICALS", "BlockCache", "MosaicDem", "RasterDem", "file_vertical"]
+
+VERTICALS = ("ellipsoid", "geoid")
+"""Accepted values of ``vertical=`` (besides ``None``: from the file)."""
+
+_HALO = 2  # pixels around each block: enough for bicubic's 4 x 4 taps
+_BLOCK = 512
+_WHOLE = 2048  # rasters up to this size (both sides) are one block
+_STRIP_PIXELS = 1 << 22  # pixels per read when scanning a window for statistics
+
+
+# ---------------------------------------------------------------------------- block cache
+class BlockCache:
+    """A thread-safe LRU cache of DEM blocks, bounded in bytes.
+
+    Parameters
+    ----------
+    max_bytes : int
+        Budget; least recently used blocks are dropped beyond it.
+    """
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = int(max_bytes)
+        self._data: OrderedDict[Any, np.ndarray] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key: Any, load: Callable[[], np.ndarray]) -> np.ndarray:
+        """The block under ``key``, loaded by ``load()`` (outside the lock) when missing."""
+        with self._lock:
+            found = self._data.get(key)
+            if found is not None:
+                self._data.move_to_end(key)
+                self.hits += 1
+                return found
+            self.misses += 1
+        block = load()
+        block.flags.writeable = False
+        with self._lock:
+            if key not in self._data:
+                self._data[key] = block
+                self._bytes += block.nbytes
+                while self._bytes > self.max_bytes and len(self._data) > 1:
+                    _, old = self._data.popitem(last=False)
+                    self._bytes -= old.nbytes
+            return self._data[key]
+
+    def clear(self) -> None:
+        """Drop every block and reset the counters."""
+        with self._lock:
+            self._data.clear()
+            self._bytes = 0
+            self.hits = self.misses = 0
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held."""
+        return self._bytes
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+
+BLOCK_CACHE = BlockCache(int(float(os.environ.get("GEOBLOCK_DEM_CACHE_MB", "256")) * 2**20))
+"""The process-wide DEM block cache shared by every :class:`RasterDem`."""
+
+_stats: dict[Any, tuple[float, float, int, int]] = {}  # full-raster statistics, per file+options
+_stats_lock = threading.Lock()
+
+
+# ---------------------------------------------------------------------------- vertical datum
+def _to_pyproj(crs: Any) -> pyproj.CRS:
+    return pyproj.CRS.from_wkt(crs.to_wkt())
+
+
+def file_vertical(crs: pyproj.CRS, driver: str) -> tuple[str | None, str]:
+    """The vertical datum a DEM file states, and how it states it.
+
+    Parameters
+    ----------
+    crs : pyproj.CRS
+        The raster's CRS as read.
+    driver : str
+        GDAL driver short name.
+
+    Returns
+    -------
+    (str or None, str)
+        ``"geoid"`` (EGM96), ``"ellipsoid"``, ``"other"`` (a vertical datum geoblock has no
+        grid for) or ``None`` (not stated); and a description for messages and ``dem-info``.
+    """
+    if crs.is_compound and len(crs.sub_crs_list) > 1:
+        vert = crs.sub_crs_list[1]
+        datum = vert.datum.name if vert.datum is not None else vert.name
+        if "EGM96" in datum.upper().replace(" ", "") or "EGM96" in vert.name.upper():
+            return "geoid", f"compound CRS, vertical part {vert.name!r} (EGM96)"
+        if vert.is_geographic or "ellipsoid" in vert.name.lower():
+            return "ellipsoid", f"compound CRS, vertical part {vert.name!r}"
+        return "other", f"compound CRS, vertical part {vert.name!r} (datum {datum!r})"
+    if crs.is_geographic and len(crs.axis_info) == 3:
+        return "ellipsoid", f"3-D geographic CRS {crs.name!r} (ellipsoidal heights)"
+    if driver == "SRTMHGT":
+        return "geoid", "SRTM .hgt tile: heights above EGM96 by the SRTM specification"
+    return None, "not stated by the file"
+
+
+# ---------------------------------------------------------------------------- RasterDem
+class RasterDem(DemBase):
+    """A DEM file read through rasterio, sampled at pixel centres, heights ellipsoidal.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Any raster rasterio opens (GeoTIFF, SRTM ``.hgt``, VRT, ...), in any CRS.
+    vertical : {"ellipsoid", "geoid"} or None
+        Datum of the file's heights; ``None``: as the file states (see the module notes).
+    geoid : Geoid, str or os.PathLike, optional
+        Geoid grid for ``vertical="geoid"`` (default: found by
+        :func:`~geoblock.dem.geoid.find_geoid`).
+    nodata : "nan", "fill", "nearest" or float
+        Nodata policy (module notes).
+    interpolation : {"nearest", "bilinear", "bicubic"}
+    strict : bool
+        Raise :class:`~geoblock.errors.DemCoverageError` when points fall outside the raster
+        (default: NaN and status ``NO_DEM``).
+    band : int
+        1-based band holding the heights.
+    fill_distance : int
+        Search distance of ``nodata="fill"``, pixels.
+
+    Raises
+    ------
+    DemError
+        The file cannot be opened, has no CRS, an option is invalid, or its vertical datum is
+        not stated by the file nor by ``vertical=``.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        vertical: str | None = None,
+        geoid: Geoid | str | os.PathLike[str] | None = None,
+        nodata: str | float = "nan",
+        interpolation: str = "bilinear",
+        strict: bool = False,
+        band: int = 1,
+        fill_distance: int = 100,
+    ) -> None:
+        import rasterio
+        from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
+
+        self._path = str(path) if str(path).startswith(("/vsi", "http")) else str(
+            Path(path).expanduser().resolve())
+        if interpolation not in INTERPOLATIONS:
+            raise DemError(f"DEM {self._path}: interpolation must be one of {INTERPOLATIONS}, "
+                           f"got {interpolation!r}")
+        if vertical is not None and vertical not in VERTICALS:
+            raise DemError(f"DEM {self._path}: vertical must be 'geoid', 'ellipsoid' or None, "
+                           f"got {vertical!r}")
+        if isinstance(nodata, str):
+            if nodata not in ("nan", "fill", "nearest"):
+                raise DemError(f"DEM {self._path}: nodata must be 'nan', 'fill', 'nearest' or a "
+                               f"number, got {nodata!r}")
+            nodata = "fill" if nodata == "nearest" else nodata
+        else:
+            nodata = float(nodata)
+            if not math.isfinite(nodata):
+                raise DemError(f"DEM {self._path}: a nodata fill value must be finite")
+        self._nodata_policy: str | float = nodata
+        self._interpolation = interpolation
+        self._strict = bool(strict)
+        self._band = int(band)
+        self._fill_distance = int(fill_distance)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NotGeoreferencedWarning)  # refused below
+                ds = rasterio.open(self._path)
+            with ds:
+                if not 1 <= self._band <= ds.count:
+                    raise DemError(f"DEM {self._path}: band {band} does not exist "
+                                   f"({ds.count} bands)")
+                if ds.crs is None:
+                    raise DemError(f"DEM {self._path} has no CRS (georeferencing); geoblock "
+                                   "needs one to place its heights")
+                self._driver = ds.driver
+                self._shape = (int(ds.height), int(ds.width))
+                self._transform = Affine(*tuple(ds.transform)[:6])
+                self._crs = _to_pyproj(ds.crs)
+                file_nodata = ds.nodatavals[self._band - 1]
+                self._file_nodata = None if file_nodata is None else float(file_nodata)
+                self._dtype = np.dtype(ds.dtypes[self._band - 1])
+                self._scale = float(ds.scales[self._band - 1] or 1.0)
+                self._offset = float(ds.offsets[self._band - 1] or 0.0)
+                tags = ds.tags(self._band)
+        except RasterioIOError as exc:
+            raise DemError(f"cannot open DEM {self._path}: {exc}") from exc
+        if self._transform.is_degenerate:
+            raise DemError(f"DEM {self._path}: degenerate geotransform {tuple(self._transform)}")
+        self._tag_stats = (tags.get("STATISTICS_MINIMUM"), tags.get("STATISTICS_MAXIMUM"))
+
+        stated, how = file_vertical(self._crs, self._driver)
+        if vertical is None:
+            if stated is None:
+                raise DemError(
+                    f"DEM {self._path}: its vertical datum is not stated (CRS {self._crs.name!r} "
+                    "has no vertical part) and geoblock does not guess it: pass "
+                    "vertical='geoid' (heights above EGM96, e.g. SRTM, Copernicus DEM uses "
+                    "EGM2008: pass its grid with geoid=) or vertical='ellipsoid' (heights above "
+                    "WGS84), e.g. open_dem(path, vertical='geoid'), or on the command line "
+                    "--vertical geoid; or give the file a compound CRS such as EPSG:4326+5773"
+                )
+            if stated == "other":
+                raise DemError(
+                    f"DEM {self._path}: {how} is not supported (geoblock converts EGM96 "
+                    "heights); pass vertical='geoid' with geoid= the grid of that datum, or "
+                    "vertical='ellipsoid'"
+                )
+            self._vertical = stated
+            self._vertical_source = how
+        else:
+            self._vertical = vertical
+            self._vertical_source = f"stated by the caller (file: {how})"
+        self._geoid = find_geoid(geoid) if self._vertical == "geoid" else None
+
+        self._horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
+        self._lonlat = _is_lonlat(self._horizontal)
+        rows, cols = self._shape
+        self._block = max(rows, cols) if max(rows, cols) <= _WHOLE else _BLOCK
+        self._nbc = -(-cols // self._block)
+        self._store_dtype = np.float64 if self._dtype == np.float64 else np.float32
+        self._cache_key = (self._path, self._band, str(self._nodata_policy), self._fill_distance)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def path(self) -> str:
+        """Absolute path of the file."""
+        return self._path
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of the raster."""
+        return self._shape
+
+    @property
+    def transform(self) -> Affine:
+        """GDAL geotransform (pixel corners) of the raster."""
+        return self._transform
+
+    @property
+    def crs(self) -> pyproj.CRS:
+        """The file's CRS (compound when the file states a vertical part)."""
+        return self._crs
+
+    @property
+    def driver(self) -> str:
+        return self._driver
+
+    @property
+    def vertical(self) -> str:
+        """``"geoid"`` or ``"ellipsoid"``: datum of the file's heights."""
+        return self._vertical
+
+    @property
+    def vertical_source(self) -> str:
+        """How :attr:`vertical` was decided (file CRS, SRTM specification, caller)."""
+        return self._vertical_source
+
+    @property
+    def geoid(self) -> Geoid | None:
+        """The geoid added to the file's heights, if any."""
+        return self._geoid
+
+    @property
+    def nodata(self) -> str | float:
+        """The nodata policy: ``"nan"``, ``"fill"`` or a fill value."""
+        return self._nodata_policy
+
+    @property
+    def file_nodata(self) -> float | None:
+        """The file's nodata value."""
+        return self._file_nodata
+
+    @property
+    def interpolation(self) -> str:
+        return self._interpolation
+
+    @property
+    def strict(self) -> bool:
+        return self._strict
+
+    @property
+    def native_bounds(self) -> tuple[float, float, float, float]:
+        """``(left, bottom, right, top)`` in the file's CRS."""
+        rows, cols = self._shape
+        x, y = self._transform * (np.array([0, cols, cols, 0]), np.array([0, 0, rows, rows]))
+        return (float(np.min(x)), float(np.min(y)), float(np.max(x)), float(np.max(y)))
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(west, south, east, north)`` of the raster, degrees (WGS84)."""
+        rows, cols = self._shape
+        t = np.linspace(0.0, 1.0, 21)
+        c = np.concatenate([t * cols, np.full(21, cols), t[::-1] * cols, np.zeros(21)])
+        r = np.concatenate([np.zeros(21), t * rows, np.full(21, rows), t[::-1] * rows])
+        x, y = self._transform * (c, r)
+        if self._lonlat:
+            lon, lat = np.asarray(x), np.asarray(y)
+        else:
+            lon, lat = coords.transformer(self._horizontal, "EPSG:4326").transform(x, y)
+        return (float(np.min(lon)), float(np.min(lat)), float(np.max(lon)), float(np.max(lat)))
+
+    @property
+    def resolution_m(self) -> float:
+        """Post spacing, metres (geometric mean of the two axes; degrees scaled at the
+        equator for geographic rasters, i.e. an upper bound)."""
+        a, b, _, d, e, _ = tuple(self._transform)[:6]
+        size = float(np.sqrt(abs(a * e - b * d)))
+        if self._horizontal.is_geographic:
+            return size * np.radians(1.0) * coords.WGS84_A
+        return size
+
+    # ------------------------------------------------------------------ reading
+    def _read(self, ds: Any, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """Rows ``r0:r1``, cols ``c0:c1`` (inside the raster) as floats, NaN for nodata."""
+        from rasterio.windows import Window
+
+        raw = ds.read(self._band, window=Window(c0, r0, c1 - c0, r1 - r0))
+        out = raw.astype(self._store_dtype)
+        bad = ~np.isfinite(out)
+        if self._file_nodata is not None and np.isfinite(self._file_nodata):
+            bad |= raw == self._file_nodata
+        if self._scale != 1.0 or self._offset != 0.0:
+            out = out * self._scale + self._offset
+        out[bad] = np.nan
+        return out
+
+    def _load_block(self, br: int, bc: int) -> np.ndarray:
+        import rasterio
+
+        rows, cols = self._shape
+        b, h = self._block, _HALO
+        margin = h + (self._fill_distance if self._nodata_policy == "fill" else 0)
+        r0, r1 = max(br * b - margin, 0), min((br + 1) * b + margin, rows)
+        c0, c1 = max(bc * b - margin, 0), min((bc + 1) * b + margin, cols)
+        with rasterio.open(self._path) as ds:
+            data = self._read(ds, r0, r1, c0, c1)
+        if self._nodata_policy == "fill":
+            data = self._fill(data)
+        elif not isinstance(self._nodata_policy, str):
+            data[np.isnan(data)] = self._nodata_policy
+        # crop to block + halo, then repeat the edge pixels past the raster's edge
+        want_r0, want_c0 = br * b - h, bc * b - h
+        cr0, cc0 = max(want_r0, 0) - r0, max(want_c0, 0) - c0
+        cr1 = min((br + 1) * b + h, rows) - r0
+        cc1 = min((bc + 1) * b + h, cols) - c0
+        core = data[cr0:cr1, cc0:cc1]
+        pad_top = max(0, -want_r0)
+        pad_left = max(0, -want_c0)
+        pad_bottom = b + 2 * h - pad_top - core.shape[0]
+        pad_right = b + 2 * h - pad_left - core.shape[1]
+        return np.pad(core, ((pad_top, pad_bottom), (pad_left, pad_right)), mode="edge")
+
+    def _fill(self, data: np.ndarray) -> np.ndarray:
+        from rasterio.fill import fillnodata
+
+        mask = np.isfinite(data)
+        if mask.all() or not mask.any():
+            return data
+        sentinel = np.float32(-1e30)  # left where no valid pixel is within reach
+        filled = fillnodata(np.where(mask, data, sentinel).astype(np.float32),
+                            mask=mask.astype(np.uint8), max_search_distance=self._fill_distance,
+                            smoothing_iterations=0)
+        out = np.where(filled == sentinel, np.nan, filled).astype(self._store_dtype)
+        out[mask] = data[mask]
+        return out
+
+    def pixel_coords(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel-centre ``(row, col)`` of WGS84 points in the raster (integers at centres)."""
+        x, y = lonlat_to_crs(self._crs, np.asarray(lon, float), np.asarray(lat, float))
+        if self._lonlat:
+            west = self._transform.c
+            x = west + (np.asarray(x, float) - west) % 360.0
+        col, row = ~self._transform * (x, y)
+        return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
+
+    def _sample(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ellipsoidal heights (NaN for none) and the mask of points outside the raster."""
+        rows, cols = self._shape
+        row, col = self.pixel_coords(lon, lat)
+        with np.errstate(invalid="ignore"):
+            inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
+        out = np.full(lon.shape, np.nan)
+        if not inside.any():
+            return out, ~inside
+        idx = np.flatnonzero(inside)
+        r = np.clip(row[idx], 0.0, rows - 1.0)
+        c = np.clip(col[idx], 0.0, cols - 1.0)
+        b = self._block
+        if self._interpolation == "nearest":
+            br, bc = np.floor(r + 0.5) // b, np.floor(c + 0.5) // b
+        else:
+            br = np.minimum(np.floor(r), rows - 1) // b
+            bc = np.minimum(np.floor(c), cols - 1) // b
+        keys = (br * self._nbc + bc).astype(np.int64)
+        values = np.empty(idx.size)
+        if keys.size and keys.min() == keys.max():
+            groups = [(int(keys[0]), slice(None))]
+        else:
+            order = np.argsort(keys, kind="stable")
+            uniq, starts = np.unique(keys[order], return_index=True)
+            ends = np.append(starts[1:], order.size)
+            groups = [(int(k), order[s:e]) for k, s, e in zip(uniq, starts, ends, strict=True)]
+        for key, sel in groups:
+            kr, kc = divmod(key, self._nbc)
+            block = BLOCK_CACHE.get((*self._cache_key, kr, kc),
+                                    lambda kr=kr, kc=kc: self._load_block(kr, kc))
+            values[sel] = sample(block, r[sel] - (kr * b - _HALO), c[sel] - (kc * b - _HALO),
+                                 self._interpolation)
+        if self._geoid is not None:
+            values = values + self._geoid.undulation(lon[idx], lat[idx])
+        out[idx] = values
+        return out, ~inside
+
+    def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+        h, outside = self._sample(lon, lat)
+        if self._strict and outside.any():
+            raise DemCoverageError(
+                f"{int(outside.sum())} of {outside.size} points fall outside the DEM "
+                f"{self._path} (bounds {_fmt_bounds(self.bounds)}); strict=True"
+            )
+        return h
+
+    def heights_on_grid(
+        self, crs: Any, transform: Affine | Sequence[float], shape: tuple[int, int]
+    ) -> np.ndarray:
+        """The DEM resampled onto an output grid (e.g. an orthorectifier's chunk).
+
+        Parameters
+        ----------
+        crs : pyproj.CRS, str or int
+            CRS of the output grid.
+        transform : affine.Affine or sequence of 6
+            GDAL geotransform of the output grid (pixel corners).
+        shape : (int, int)
+            ``(rows, cols)`` of the output grid.
+
+        Returns
+        -------
+        ndarray, (rows, cols)
+            Ellipsoidal heights, metres, at the output pixel centres (NaN where none).
+        """
+        return _heights_on_grid(self, crs, transform, shape)
+
+    # ------------------------------------------------------------------ statistics
+    def _scan(self, r0: int, r1: int, c0: int, c1: int) -> tuple[float, float, int, int]:
+        """Raw (file datum) min, max, nodata count and pixel count of a window, after the
+        nodata policy."""
+        import rasterio
+
+        lo, hi, nbad, n = np.inf, -np.inf, 0, 0
+        step = max(1, _STRIP_PIXELS // max(c1 - c0, 1))
+        with rasterio.open(self._path) as ds:
+            for s in range(r0, r1, step):
+                data = self._read(ds, s, min(s + step, r1), c0, c1)
+                good = np.isfinite(data)
+                n += data.size
+                nbad += int(data.size - good.sum())
+                if good.any():
+                    lo = min(lo, float(data[good].min()))
+                    hi = max(hi, float(data[good].max()))
+        if nbad and not isinstance(self._nodata_policy, str):
+            lo, hi = min(lo, self._nodata_policy), max(hi, self._nodata_policy)
+        return lo, hi, nbad, n
+
+    def statistics(self) -> dict[str, Any]:
+        """Whole-raster figures (cached per file and options): ``min``/``max`` of the file's
+        heights (its own datum, metres), ``nodata_count``, ``pixel_count`` and
+        ``nodata_share`` (0..1)."""
+        key = self._cache_key
+        with _stats_lock:
+            found = _stats.get(key)
+        if found is None:
+            rows, cols = self._shape
+            found = self._scan(0, rows, 0, cols)
+            with _stats_lock:
+                _stats[key] = found
+        lo, hi, nbad, n = found
+        return {"min": lo if np.isfinite(lo) else float("nan"),
+                "max": hi if np.isfinite(hi) else float("nan"),
+                "nodata_count": nbad, "pixel_count": n, "nodata_share": nbad / n if n else 0.0}
+
+    def height_range(self, bounds=None) -> tuple[float, float]:
+        """``(min, max)`` ellipsoidal height of the posts over ``(west, south, east, north)``
+        degrees (default the whole raster), metres; NaN when there is none.
+
+        The posts of a window read covering the box (one pixel around it) are scanned; the
+        geoid's range over the box is added for a geoid DEM, so the range is conservative by
+        at most the geoid's variation over the box (metres).
+        """
+        if bounds is None:
+            stats = self.statistics()
+            lo, hi = stats["min"], stats["max"]
+            box = self.bounds
+        else:
+            window = self._window(bounds)
+            if window is None:
+                return (float("nan"), float("nan"))
+            lo, hi, _, _ = self._scan(*window)
+            box = tuple(float(v) for v in bounds)
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            return (float("nan"), float("nan"))
+        if self._geoid is not None:
+            n_lo, n_hi = self._geoid.undulation_range(box)
+            lo, hi = lo + n_lo, hi + n_hi
+        return (float(lo), float(hi))
+
+    def _window(self, bounds) -> tuple[int, int, int, int] | None:
+        """``(r0, r1, c0, c1)`` of the pixels whose kernels reach into a lon/lat box."""
+        w, s, e, n = (float(v) for v in bounds)
+        t = np.linspace(0.0, 1.0, 21)
+        lon = np.concatenate([w + t * (e - w), np.full(21, e), e - t * (e - w), np.full(21, w)])
+        lat = np.concatenate([np.full(21, s), s + t * (n - s), np.full(21, n), n - t * (n - s)])
+        row, col = self.pixel_coords(lon, lat)
+        if self._lonlat and e - w >= 360.0:
+            col = np.array([-1.0, self._shape[1] + 1.0])
+        rows, cols = self._shape
+        r0 = max(int(np.floor(np.nanmin(row))) - 1, 0)
+        r1 = min(int(np.floor(np.nanmax(row))) + 3, rows)
+        c0 = max(int(np.floor(np.nanmin(col))) - 1, 0)
+        c1 = min(int(np.floor(np.nanmax(col))) + 3, cols)
+        if r0 >= r1 or c0 >= c1:
+            return None
+        return (r0, r1, c0, c1)
+
+    # ------------------------------------------------------------------ values
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe: the path and the options (no pixels); :func:`geoblock.open_dem` takes it
+        back."""
+        return {
+            "dem": "raster",
+            "path": self._path,
+            "vertical": self._vertical,
+            "geoid": None if self._geoid is None else self._geoid.path,
+            "nodata": self._nodata_policy,
+            "interpolation": self._interpolation,
+            "strict": self._strict,
+            "band": self._band,
+            "fill_distance": self._fill_distance,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RasterDem:
+        """The DEM of :meth:`to_dict`."""
+        opts = {k: v for k, v in data.items() if k not in ("dem", "path")}
+        return cls(data["path"], **opts)
+
+    def __reduce__(self):
+        return (RasterDem.from_dict, (self.to_dict(),))
+
+    def __repr__(self) -> str:
+        rows, cols = self._shape
+        return (f"<RasterDem {self._path} {rows}x{cols} {self._crs.name!r} heights above the "
+                f"{self._vertical}, {self._interpolation}>")
+
+
+# ---------------------------------------------------------------------------- MosaicDem
+class MosaicDem(DemBase):
+    """Several raster DEMs (tiles, in any CRSs) as one: each point takes the first tile, in
+    the order given, that has a height there.
+
+    Parameters
+    ----------
+    tiles : sequence of RasterDem
+    strict : bool
+        Raise :class:`~geoblock.errors.DemCoverageError` for points outside every tile.
+    """
+
+    def __init__(self, tiles: Sequence[RasterDem], *, strict: bool = False) -> None:
+        if not tiles:
+            raise DemError("a DEM mosaic needs at least one tile")
+        self._tiles = tuple(tiles)
+        self._strict = bool(strict)
+
+    @property
+    def tiles(self) -> tuple[RasterDem, ...]:
+        return self._tiles
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        b = np.array([t.bounds for t in self._tiles])
+        return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()),
+                float(b[:, 3].max()))
+
+    @property
+    def resolution_m(self) -> float:
+        return min(t.resolution_m for t in self._tiles)
+
+    def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+        out = np.full(lon.shape, np.nan)
+        outside = np.ones(lon.shape, bool)
+        todo = np.arange(lon.size)
+        for tile in self._tiles:
+            if todo.size == 0:
+                break
+            h, out_tile = tile._sample(lon[todo], lat[todo])
+            outside[todo[~out_tile]] = False
+            out[todo] = h
+            todo = todo[~np.isfinite(h)]
+        if self._strict and outside.any():
+            raise DemCoverageError(
+                f"{int(outside.sum())} of {outside.size} points fall outside every tile of the "
+                f"DEM mosaic ({len(self._tiles)} tiles, bounds {_fmt_bounds(self.bounds)}); "
+                "strict=True"
+            )
+        return out
+
+    def height_range(self, bounds=None) -> tuple[float, float]:
+        """``(min, max)`` ellipsoidal height over the tiles meeting ``bounds``, metres."""
+        ranges = []
+        for t in self._tiles:
+            if bounds is not None and not _overlap(t.bounds, bounds):
+                continue
+            lo, hi = t.height_range(bounds)
+            if np.isfinite(lo):
+                ranges.append((lo, hi))
+        if not ranges:
+            return (float("nan"), float("nan"))
+        return (min(r[0] for r in ranges), max(r[1] for r in ranges))
+
+    def heights_on_grid(self, crs, transform, shape) -> np.ndarray:
+        """As :meth:`RasterDem.heights_on_grid`."""
+        return _heights_on_grid(self, crs, transform, shape)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"dem": "mosaic", "tiles": [t.to_dict() for t in self._tiles],
+                "strict": self._strict}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> MosaicDem:
+        return cls([RasterDem.from_dict(t) for t in data["tiles"]],
+                   strict=data.get("strict", False))
+
+    def __reduce__(self):
+        return (MosaicDem.from_dict, (self.to_dict(),))
+
+    def __repr__(self) -> str:
+        return f"<MosaicDem of {len(self._tiles)} tiles>"
+
+
+# ---------------------------------------------------------------------------- helpers
+def _overlap(a, b) -> bool:
+    return not (a[2] < b[0] or b[2] < a[0] or a[3] < b[1] or b[3] < a[1])
+
+
+def _fmt_bounds(b) -> str:
+    return "(" + ", ".join(f"{v:.6f}" for v in b) + ")"
+
+
+def _heights_on_grid(dem: DemBase, crs, transform, shape) -> np.ndarray:
+    rows, cols = (int(v) for v in shape)
+    t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    x, y = t * (cc + 0.5, rr + 0.5)
+    dst = pyproj.CRS.from_user_input(crs)
+    horizontal = dst.sub_crs_list[0] if dst.is_compound else dst
+    if _is_lonlat(horizontal):
+        lon, lat = x, y
+    else:
+        lon, lat = coords.transformer(horizontal, "EPSG:4326").transform(x, y)
+    return dem.height(np.asarray(lon, float), np.asarray(lat, float))
