@@ -13,6 +13,7 @@ import pyproj
 from affine import Affine
 
 from geoblock import coords
+from geoblock._affine import apply as affine_apply
 from geoblock.dem.base import DemBase
 from geoblock.dem.sampling import INTERPOLATIONS, sample
 
@@ -109,7 +110,7 @@ class GridDem(DemBase):
         rows, cols = self._heights_array.shape
         c = np.array([0, cols, cols, 0, cols / 2, 0, cols / 2, cols], float)
         r = np.array([0, 0, rows, rows, 0, rows / 2, rows, rows / 2], float)
-        x, y = self._transform * (c, r)
+        x, y = affine_apply(self._transform, *(c, r))
         horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
         if _is_lonlat(horizontal):
             lon, lat = np.asarray(x), np.asarray(y)
@@ -135,7 +136,7 @@ class GridDem(DemBase):
             # bring longitudes next to the grid (a grid on 0..360 or across the antimeridian)
             west = self._transform.c  # x of the grid's left edge (north-up grids)
             x = west + (np.asarray(x, float) - west) % 360.0
-        col, row = ~self._transform * (x, y)
+        col, row = affine_apply(~self._transform, *(x, y))
         return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
 
     def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
@@ -149,7 +150,7 @@ class GridDem(DemBase):
         """Min and max ellipsoidal height of the posts inside ``bounds`` (default all)."""
         rows, cols = self._heights_array.shape
         rr, cc = np.mgrid[0:rows, 0:cols]
-        x, y = self._transform * (cc + 0.5, rr + 0.5)
+        x, y = affine_apply(self._transform, *(cc + 0.5, rr + 0.5))
         horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
         if _is_lonlat(horizontal):
             lon, lat = x, y

@@ -47,6 +47,7 @@ import pyproj
 from affine import Affine
 
 from geoblock import coords
+from geoblock._affine import apply as affine_apply
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
@@ -350,7 +351,7 @@ class RasterDem(DemBase):
     def native_bounds(self) -> tuple[float, float, float, float]:
         """``(left, bottom, right, top)`` in the file's CRS."""
         rows, cols = self._shape
-        x, y = self._transform * (np.array([0, cols, cols, 0]), np.array([0, 0, rows, rows]))
+        x, y = affine_apply(self._transform, *(np.array([0, cols, cols, 0]), np.array([0, 0, rows, rows])))
         return (float(np.min(x)), float(np.min(y)), float(np.max(x)), float(np.max(y)))
 
     @property
@@ -360,7 +361,7 @@ class RasterDem(DemBase):
         t = np.linspace(0.0, 1.0, 21)
         c = np.concatenate([t * cols, np.full(21, cols), t[::-1] * cols, np.zeros(21)])
         r = np.concatenate([np.zeros(21), t * rows, np.full(21, rows), t[::-1] * rows])
-        x, y = self._transform * (c, r)
+        x, y = affine_apply(self._transform, *(c, r))
         if self._lonlat:
             lon, lat = np.asarray(x), np.asarray(y)
         else:
@@ -438,7 +439,7 @@ class RasterDem(DemBase):
         if self._lonlat:
             west = self._transform.c
             x = west + (np.asarray(x, float) - west) % 360.0
-        col, row = ~self._transform * (x, y)
+        col, row = affine_apply(~self._transform, *(x, y))
         return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
 
     def _sample(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -718,7 +719,7 @@ def _heights_on_grid(dem: DemBase, crs, transform, shape) -> np.ndarray:
     rows, cols = (int(v) for v in shape)
     t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
     rr, cc = np.mgrid[0:rows, 0:cols]
-    x, y = t * (cc + 0.5, rr + 0.5)
+    x, y = affine_apply(t, *(cc + 0.5, rr + 0.5))
     dst = pyproj.CRS.from_user_input(crs)
     horizontal = dst.sub_crs_list[0] if dst.is_compound else dst
     if _is_lonlat(horizontal):

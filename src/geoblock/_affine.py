@@ -1,0 +1,17 @@
+"""Applying affine geotransforms to coordinate arrays (no reliance on ``Affine.__mul__``,
+which affine 3 deprecates for points)."""
+
+from __future__ import annotations
+
+import numpy as np
+from affine import Affine
+
+__all__ = ["apply"]
+
+
+def apply(transform: Affine, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """``transform`` applied to points: ``(a x + b y + c, d x + e y + f)``, float64 arrays."""
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    a, b, c, d, e, f = tuple(transform)[:6]
+    return a * x + b * y + c, d * x + e * y + f
