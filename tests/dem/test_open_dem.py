@@ -79,3 +79,29 @@ def test_errors(tmp_path):
                   Affine(1, 0, 0, 0, -1, 3), "EPSG:32631")
     with pytest.raises(DemError, match="x.tif.*vertical="):
         geoblock.open_dem(p)
+
+
+def test_missing_heights_policy_covers_voids_and_outside(tmp_path):
+    """open_dem(missing=H): GDAL's RPC_DEM_MISSING_VALUE, as a DEM of its own."""
+    import pickle
+
+    import rasterio
+    from affine import Affine
+
+    import geoblock
+    from geoblock.dem import FilledDem
+
+    path = tmp_path / "dem.tif"
+    data = np.full((4, 4), 100.0)
+    data[1, 1] = -9999.0
+    with rasterio.open(path, "w", driver="GTiff", width=4, height=4, count=1, dtype="float64",
+                       crs="EPSG:4979", transform=Affine(0.1, 0.0, 5.0, 0.0, -0.1, 45.0),
+                       nodata=-9999.0) as ds:
+        ds.write(data, 1)
+    dem = geoblock.open_dem(path, missing=7.0, interpolation="nearest")
+    assert isinstance(dem, FilledDem)
+    h, status = dem.height_with_status([5.05, 5.15, 20.0], [44.95, 44.85, 0.0])
+    assert h.tolist() == [100.0, 7.0, 7.0] and status.tolist() == [0, 0, 0]
+    assert dem.height_range() == (7.0, 100.0)
+    again = geoblock.open_dem(dem.to_dict())
+    assert again == dem and pickle.loads(pickle.dumps(dem)) == dem

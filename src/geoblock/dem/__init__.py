@@ -2,6 +2,7 @@
 
 from geoblock.dem.base import DemBase
 from geoblock.dem.constant import ConstantDem
+from geoblock.dem.filled import FilledDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.grid import GridDem
 from geoblock.dem.intersect import localize
@@ -16,6 +17,7 @@ __all__ = [
     "ConstantGeoidDem",
     "DemBase",
     "DemSource",
+    "FilledDem",
     "Geoid",
     "GridDem",
     "MosaicDem",

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from geoblock._array import broadcast_float64, warn_status
+from geoblock.dem.filled import FilledDem
 from geoblock.errors import GeoblockError
 from geoblock.typing import ArrayLike, GroundCoords, Status
 
@@ -178,7 +179,9 @@ def localize(
     status = np.full(n, _INVALID, dtype=np.uint8)
     ok = np.flatnonzero(np.isfinite(r) & np.isfinite(c))
     if ok.size:
-        ev = _Evaluator(model, dem, fill_height)
+        if fill_height is not None:
+            dem = FilledDem(dem, fill_height)
+        ev = _Evaluator(model, dem)
         if method == "robust":
             res = _robust(ev, r[ok], c[ok], tolerance_m, max_iterations or 60, max_levels,
                           max_evaluations)
@@ -199,10 +202,9 @@ def localize(
 class _Evaluator:
     """``f(h) = h - dem(ray(h))`` for flat arrays of points, with the reason a sample fails."""
 
-    def __init__(self, model: Any, dem: Any, fill_height: float | None) -> None:
+    def __init__(self, model: Any, dem: Any) -> None:
         self.model = model
         self.dem = dem
-        self.fill = None if fill_height is None else float(fill_height)
         self.calls = 0
 
     def ground(self, row, col, h):
@@ -215,8 +217,6 @@ class _Evaluator:
         lon, lat, mstat = self.ground(row, col, h)
         z, _ = self.dem.height_with_status(lon, lat)
         z = np.asarray(z, np.float64)
-        if self.fill is not None:
-            z = np.where(np.isnan(z) & (mstat == _OK), self.fill, z)
         f = h - z
         reason = np.where(mstat != _OK, mstat, np.where(np.isfinite(f), _OK, _NO_DEM))
         return lon, lat, f, reason.astype(np.uint8)
@@ -225,9 +225,6 @@ class _Evaluator:
         lo, hi = self.dem.height_range(bounds)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             lo, hi = self.dem.height_range()
-        if self.fill is not None:
-            lo = self.fill if not math.isfinite(lo) else min(lo, self.fill)
-            hi = self.fill if not math.isfinite(hi) else max(hi, self.fill)
         return float(lo), float(hi)
 
 

@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from geoblock.dem.filled import FilledDem
 from geoblock.dem.base import DemBase
 from geoblock.dem.constant import ConstantDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
@@ -26,6 +27,7 @@ def open_dem(
     nodata: str | float = "nan",
     interpolation: str = "bilinear",
     strict: bool = False,
+    missing: float | None = None,
 ) -> DemBase:
     """Open a DEM; its heights come out above the WGS84 ellipsoid.
 
@@ -58,6 +60,10 @@ def open_dem(
     strict : bool
         Raise :class:`~geoblock.errors.DemCoverageError` when points fall outside the DEM
         instead of returning NaN with status ``NO_DEM``.
+    missing : float, optional
+        A height, metres above the ellipsoid, for every point where the DEM has none (voids
+        left by ``nodata``, and outside its coverage): GDAL's ``RPC_DEM_MISSING_VALUE``. The
+        result is a :class:`~geoblock.dem.FilledDem`.
 
     Returns
     -------
@@ -76,6 +82,13 @@ def open_dem(
     >>> float(dem.height(5.0, 44.0))
     100.0
     """
+    if missing is not None:
+        inner = open_dem(source, vertical=vertical, geoid=geoid, nodata=nodata,
+                         interpolation=interpolation, strict=strict)
+        try:
+            return FilledDem(inner, missing)
+        except ValueError as exc:
+            raise DemError(f"open_dem: missing={missing!r}: {exc}") from None
     if vertical is not None and vertical not in VERTICALS:
         raise DemError(f"open_dem: vertical must be 'geoid', 'ellipsoid' or None, got {vertical!r}")
     if isinstance(source, DemBase):
@@ -127,6 +140,8 @@ def _from_dict(data: Mapping[str, Any]) -> DemBase:
             return RasterDem.from_dict(dict(data))
         if kind == "mosaic":
             return MosaicDem.from_dict(dict(data))
+        if kind == "filled":
+            return FilledDem(_from_dict(data["source"]), float(data["fill"]))
         if kind == "constant":
             if data.get("vertical") == "geoid":
                 return ConstantGeoidDem(float(data["h"]), find_geoid(data.get("geoid")))
