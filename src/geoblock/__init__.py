@@ -10,6 +10,7 @@ from geoblock.dem import localize
 from geoblock.errors import GeoblockError, GeoblockWarning
 from geoblock.hookspecs import hookimpl
 from geoblock.io import open_dem, open_model, read_points, write_model, write_points
+from geoblock.ortho import orthorectify
 from geoblock.models import (
     ImageCorrection,
     ParameterSet,
@@ -44,6 +45,7 @@ __all__ = [
     "localize",
     "open_dem",
     "open_model",
+    "orthorectify",
     "read_points",
     "write_model",
     "write_points",

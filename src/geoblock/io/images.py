@@ -1,0 +1,372 @@
+"""Source images (read lazily, window by window) and orthoimage writing (tiled GeoTIFF / COG).
+
+* :func:`open_image` returns an :class:`ImageSource`: the path and what the orthorectifier
+  needs to know before reading (shape, bands, dtype, nodata). It holds no open dataset, so it
+  pickles by path to dask workers; :meth:`ImageSource.read` opens the file and reads one window.
+* :func:`write_ortho` computes a lazy ``(band, y, x)`` :class:`xarray.DataArray` chunk by chunk
+  and writes it as a tiled GeoTIFF or a COG, under a temporary name in the destination
+  directory, renamed to ``path`` only when everything was written: a failed or interrupted run
+  leaves nothing under ``path`` (and removes its temporary file).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import threading
+import time
+import uuid
+import warnings
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from geoblock.errors import GeoblockIOError
+
+__all__ = ["ImageSource", "open_image", "write_ortho"]
+
+PathLike = str | os.PathLike[str]
+
+
+_open_lock = threading.Lock()
+
+
+def ds_open(name: str) -> Any:
+    """``rasterio.open(name)`` without the ``NotGeoreferencedWarning`` of raw images.
+
+    ``warnings.catch_warnings`` is not thread-safe: opens are serialised (reads are not).
+    """
+    import rasterio
+
+    with _open_lock, warnings.catch_warnings():  # raw images have no geotransform: expected
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        return rasterio.open(name)
+
+
+@dataclass(frozen=True)
+class ImageSource:
+    """A raster image read lazily by window.
+
+    Attributes
+    ----------
+    path : str
+        Absolute path (or GDAL dataset name) of the image.
+    shape : (int, int)
+        ``(rows, cols)``, pixels.
+    bands : int
+        Number of bands.
+    dtype : str
+        NumPy dtype name of the pixels (the first band's).
+    nodata : float or None
+        The file's nodata value, if any.
+    """
+
+    path: str
+    shape: tuple[int, int]
+    bands: int
+    dtype: str
+    nodata: float | None = None
+
+    def read(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Read a window of every band.
+
+        Parameters
+        ----------
+        window : (row_start, row_stop, col_start, col_stop), optional
+            Pixels, inside the image; default the whole image.
+
+        Returns
+        -------
+        ndarray, (bands, R, C)
+            Of :attr:`dtype`.
+        """
+        import rasterio
+        from rasterio.windows import Window
+
+        if window is None:
+            window = (0, self.shape[0], 0, self.shape[1])
+        r0, r1, c0, c1 = (int(v) for v in window)
+        try:
+            with ds_open(self.path) as ds:
+                return ds.read(window=Window(c0, r0, c1 - c0, r1 - r0))
+        except rasterio.errors.RasterioIOError as exc:
+            raise GeoblockIOError(f"cannot read the image {self.path}: {exc}") from exc
+
+    def __dask_tokenize__(self) -> tuple:
+        try:
+            st = os.stat(self.path)
+            stamp: tuple = (st.st_size, st.st_mtime_ns)
+        except OSError:
+            stamp = ()
+        return ("ImageSource", self.path, self.shape, self.bands, self.dtype, self.nodata, stamp)
+
+
+def open_image(path: PathLike | ImageSource) -> ImageSource:
+    """Open a raster image for windowed reading.
+
+    Parameters
+    ----------
+    path : str, os.PathLike or ImageSource
+        Any raster rasterio opens (GeoTIFF, JP2, VRT, ...). An :class:`ImageSource` is
+        returned as it is.
+
+    Returns
+    -------
+    ImageSource
+
+    Raises
+    ------
+    GeoblockIOError
+        The file is missing or is not a raster.
+    """
+    if isinstance(path, ImageSource):
+        return path
+    import rasterio
+
+    name = os.fspath(path)
+    if os.path.exists(name):
+        name = str(Path(name).resolve())
+    try:
+        with ds_open(name) as ds:
+            nodata = ds.nodata
+            return ImageSource(
+                path=name,
+                shape=(int(ds.height), int(ds.width)),
+                bands=int(ds.count),
+                dtype=str(np.dtype(ds.dtypes[0])),
+                nodata=None if nodata is None else float(nodata),
+            )
+    except rasterio.errors.RasterioIOError as exc:
+        raise GeoblockIOError(f"cannot open the image {name}: {exc}") from exc
+
+
+# ---------------------------------------------------------------------- writing
+def _georeferencing(data: Any) -> tuple[str | None, Any]:
+    """``(crs_wkt, Affine)`` from the ``spatial_ref`` coordinate (rioxarray's convention)."""
+    from affine import Affine
+
+    ref = data.coords.get("spatial_ref")
+    wkt = None
+    transform = None
+    if ref is not None:
+        wkt = ref.attrs.get("crs_wkt") or ref.attrs.get("spatial_ref")
+        gt = ref.attrs.get("GeoTransform")
+        if gt is not None:
+            c, a, b, f, d, e = (float(v) for v in str(gt).split())
+            transform = Affine(a, b, c, d, e, f)
+    return wkt, transform
+
+
+class _Progress:
+    """A one-line text progress bar over a known number of chunks (standard error)."""
+
+    def __init__(self, total: int, enabled: bool, width: int = 40) -> None:
+        self.total = max(int(total), 1)
+        self.done = 0
+        self.enabled = enabled
+        self.width = width
+        self.start = time.perf_counter()
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        if self.enabled:
+            frac = min(self.done / self.total, 1.0)
+            bar = "#" * int(round(frac * self.width))
+            elapsed = time.perf_counter() - self.start
+            sys.stderr.write(f"\r[{bar:<{self.width}}] | {frac * 100:3.0f}% | {elapsed:5.1f}s")
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def _distributed_client(scheduler: Any) -> Any:
+    """The dask.distributed Client to use, or None for a local scheduler."""
+    try:
+        from distributed import Client, default_client
+    except ImportError:  # pragma: no cover - distributed is a dependency
+        return None
+    if isinstance(scheduler, Client):
+        return scheduler
+    if scheduler is None:
+        try:
+            return default_client()
+        except ValueError:
+            return None
+    return None
+
+
+def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
+    """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array as they are computed,
+    holding at most about ``in_flight`` chunks in memory."""
+    import dask
+
+    starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in array.chunks[1:]]
+    delayed = array.to_delayed()  # (1, ny, nx)
+    items = [(int(starts[0][i]), int(starts[1][j]), delayed[0, i, j])
+             for i in range(delayed.shape[1]) for j in range(delayed.shape[2])]
+    bar = _Progress(len(items), progress)
+    client = _distributed_client(scheduler)
+    try:
+        if client is not None:
+            from distributed import as_completed
+
+            pending = deque(items)
+            futures = {}
+            ac = as_completed()
+            while pending and len(futures) < in_flight:
+                r0, c0, d = pending.popleft()
+                fut = client.compute(d)
+                futures[fut.key] = (r0, c0)
+                ac.add(fut)
+            for fut in ac:
+                r0, c0 = futures.pop(fut.key)
+                block = fut.result()
+                fut.release()
+                if pending:
+                    nr0, nc0, d = pending.popleft()
+                    nxt = client.compute(d)
+                    futures[nxt.key] = (nr0, nc0)
+                    ac.add(nxt)
+                bar.update()
+                yield r0, c0, block
+        else:
+            for k in range(0, len(items), in_flight):
+                batch = items[k:k + in_flight]
+                blocks = dask.compute(*[d for _, _, d in batch], scheduler=scheduler)
+                for (r0, c0, _), block in zip(batch, blocks):
+                    bar.update()
+                    yield r0, c0, block
+    finally:
+        bar.close()
+
+
+def write_ortho(
+    data: Any,
+    path: PathLike,
+    *,
+    driver: str = "GTiff",
+    blocksize: int = 512,
+    compress: str | None = "deflate",
+    nodata: float | None = None,
+    scheduler: Any = None,
+    in_flight: int | None = None,
+    progress: bool = False,
+    **creation_options: Any,
+) -> Path:
+    """Compute a ``(band, y, x)`` DataArray and write it as a tiled GeoTIFF or a COG, atomically.
+
+    Parameters
+    ----------
+    data : xarray.DataArray, (band, y, x)
+        Lazy (dask) or in memory, georeferenced by a ``spatial_ref`` coordinate with
+        ``crs_wkt`` and ``GeoTransform`` attributes (as :func:`geoblock.orthorectify` returns
+        and rioxarray writes).
+    path : str or os.PathLike
+        Destination. Written under a temporary name (``.NAME.<random>.tmp`` in the same
+        directory) and renamed to ``path`` (``os.replace``) only on success.
+    driver : {"GTiff", "COG"}
+        Tiled GeoTIFF, or Cloud-Optimized GeoTIFF (written as a tiled GeoTIFF, then copied by
+        GDAL's COG driver, with overviews).
+    blocksize : int
+        Tile side, pixels (a multiple of 16).
+    compress : str or None
+        GDAL compression (``"deflate"``, ``"lzw"``, ``"zstd"``, None).
+    nodata : float, optional
+        Nodata value written in the file; default ``data.attrs["_FillValue"]`` if present.
+    scheduler : str, dask.distributed.Client or None
+        ``"threads"``, ``"processes"``, ``"synchronous"``, a Client, or None (the default
+        client if one exists, else dask's default scheduler).
+    in_flight : int, optional
+        Chunks computed ahead of the writer (bounds memory); default 2 per core.
+    progress : bool
+        Show a progress bar on standard error.
+    **creation_options
+        More GDAL creation options.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    GeoblockIOError
+        The destination directory does not exist, or GDAL cannot write.
+    """
+    import dask.array as da
+    import rasterio
+    import rasterio.shutil
+    from rasterio.windows import Window
+
+    path = Path(path)
+    if driver.upper() not in ("GTIFF", "COG"):
+        raise ValueError(f"write_ortho: driver must be 'GTiff' or 'COG', got {driver!r}")
+    if not path.parent.is_dir():
+        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
+    if tuple(data.dims) != ("band", "y", "x"):
+        raise ValueError(f"write_ortho: dims must be ('band', 'y', 'x'), got {data.dims}")
+    wkt, transform = _georeferencing(data)
+    if nodata is None:
+        nodata = data.attrs.get("_FillValue", data.encoding.get("_FillValue"))
+    array = data.data
+    if not isinstance(array, da.Array):
+        array = da.from_array(np.asarray(array), chunks=(-1, 1024, 1024))
+    if len(array.chunks[0]) != 1:
+        array = array.rechunk({0: -1})
+    bands, rows, cols = array.shape
+    dtype = np.dtype(array.dtype)
+    if in_flight is None:
+        in_flight = 2 * (os.cpu_count() or 1)
+    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+    cog_tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.cog.tmp"
+    profile: dict[str, Any] = {
+        "driver": "GTiff",
+        "width": cols,
+        "height": rows,
+        "count": bands,
+        "dtype": dtype.name if dtype != np.dtype(bool) else "uint8",
+        "tiled": True,
+        "blockxsize": int(blocksize),
+        "blockysize": int(blocksize),
+        "BIGTIFF": "IF_SAFER",
+    }
+    if compress:
+        profile["compress"] = compress
+    if wkt:
+        profile["crs"] = rasterio.crs.CRS.from_wkt(wkt)
+    if transform is not None:
+        profile["transform"] = transform
+    if nodata is not None and not (isinstance(nodata, float) and math.isnan(nodata)
+                                   and dtype.kind in "iub"):
+        profile["nodata"] = nodata
+    profile.update(creation_options)
+    try:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            for r0, c0, block in _iter_blocks(array, scheduler, in_flight, progress):
+                block = np.asarray(block)
+                if block.dtype == np.dtype(bool):
+                    block = block.astype(np.uint8)
+                dst.write(block, window=Window(c0, r0, block.shape[2], block.shape[1]))
+        if driver.upper() == "COG":
+            options = {"compress": compress} if compress else {}
+            rasterio.shutil.copy(tmp, cog_tmp, driver="COG", blocksize=int(blocksize), **options)
+            os.replace(cog_tmp, path)
+        else:
+            os.replace(tmp, path)
+    except rasterio.errors.RasterioIOError as exc:
+        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
+    finally:
+        for leftover in (tmp, cog_tmp):
+            try:
+                leftover.unlink()
+            except FileNotFoundError:
+                pass
+    return path
+

@@ -1,0 +1,199 @@
+"""``orthorectify``: a lazy, dask-chunked orthoimage as an ``xarray.DataArray``.
+
+The graph has one task per output chunk and no dependencies between tasks. A task receives
+only picklable values - the image (an :class:`~geoblock.io.images.ImageSource`, by path), the
+model (pickled through ``to_dict``), the DEM (by path or value), the **full** output grid and
+the chunk's window - and:
+
+1. computes the source coordinates of its pixels (:func:`~geoblock.ortho.lattice.
+   source_coordinates`, the lattice anchored to the full grid, so values do not depend on the
+   chunking);
+2. reads the source window they need: the bounding box of the finite coordinates padded by
+   ``KERNEL_RADIUS[kernel] + 1`` pixels, clipped to the image (nothing if it is empty);
+3. resamples (:func:`~geoblock.ortho.kernels.resample`) and casts to the source dtype
+   (:func:`~geoblock.ortho.kernels.cast`), ``nodata`` where invalid.
+
+Keys are ``ortho-<tokenize(inputs)>``: the same inputs give the same graph.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample
+from geoblock.ortho.lattice import BLOCK_PX, source_coordinates
+
+__all__ = ["ortho_chunk", "orthorectify"]
+
+
+def _default_fill(dtype: np.dtype, source_nodata: float | None) -> float:
+    if source_nodata is not None:
+        return source_nodata
+    return float("nan") if dtype.kind == "f" else 0
+
+
+def ortho_chunk(
+    image: Any,
+    model: Any,
+    dem: Any,
+    grid: Any,
+    window: tuple[int, int, int, int],
+    kernel: str,
+    tolerance_px: float,
+    fill: float,
+    block_px: int = BLOCK_PX,
+) -> np.ndarray:
+    """Orthorectify one chunk (the dask task).
+
+    Parameters
+    ----------
+    image : ImageSource
+        The source image (read inside the task, only the window needed).
+    model : SensorModel
+    dem : DemSource
+    grid : OutputGrid
+        The full output grid.
+    window : (row_start, row_stop, col_start, col_stop)
+        The chunk, output pixels.
+    kernel : {"nearest", "bilinear", "bicubic", "sinc"}
+    tolerance_px : float
+        Lattice tolerance, source pixels (0: exact per pixel).
+    fill : scalar
+        Output value of invalid pixels.
+    block_px : int
+        Lattice block side (see :func:`~geoblock.ortho.lattice.source_coordinates`).
+
+    Returns
+    -------
+    ndarray, (bands, R, C)
+        Of the image's dtype.
+    """
+    r0, r1, c0, c1 = window
+    dtype = np.dtype(image.dtype)
+    row, col, valid = source_coordinates(
+        model, dem, grid, tolerance_px=tolerance_px,
+        window=(slice(r0, r1), slice(c0, c1)), block_px=block_px,
+    )
+    out_shape = (image.bands, r1 - r0, c1 - c0)
+    rows, cols = image.shape
+    pad = KERNEL_RADIUS[kernel] + 1
+    if valid.any():
+        wr0 = max(math.floor(float(row[valid].min())) - pad, 0)
+        wr1 = min(math.ceil(float(row[valid].max())) + pad + 1, rows)
+        wc0 = max(math.floor(float(col[valid].min())) - pad, 0)
+        wc1 = min(math.ceil(float(col[valid].max())) + pad + 1, cols)
+    else:
+        wr0 = wr1 = wc0 = wc1 = 0
+    if wr1 <= wr0 or wc1 <= wc0:
+        return cast(np.full(out_shape, np.nan), np.zeros(out_shape[1:], bool), dtype, fill)
+    src = image.read((wr0, wr1, wc0, wc1))
+    # subtracting the window origin (an integer) is exact: values do not depend on it
+    values, ok = resample(src, row - wr0, col - wc0, kernel, nodata=image.nodata)
+    ok &= valid
+    return cast(values, ok, dtype, fill)
+
+
+def _coords(grid: Any, bands: int, fill: Any) -> dict:
+    import xarray as xr
+
+    rows, cols = grid.shape
+    t = grid.transform
+    x = t.c + t.a * (np.arange(cols) + 0.5)
+    y = t.f + t.e * (np.arange(rows) + 0.5)
+    wkt = grid.crs.to_wkt() if hasattr(grid.crs, "to_wkt") else str(grid.crs)
+    gt = " ".join(repr(float(v)) for v in (t.c, t.a, t.b, t.f, t.d, t.e))
+    spatial_ref = xr.DataArray(0, attrs={"crs_wkt": wkt, "spatial_ref": wkt, "GeoTransform": gt})
+    return {"band": np.arange(1, bands + 1), "y": y, "x": x, "spatial_ref": spatial_ref}
+
+
+def orthorectify(
+    image: Any,
+    model: Any,
+    dem: Any,
+    grid: Any = None,
+    *,
+    kernel: str = "bilinear",
+    tolerance_px: float = 0.01,
+    chunks: int | tuple[int, int] = 1024,
+    nodata: float | None = None,
+    block_px: int = BLOCK_PX,
+) -> Any:
+    """Orthorectify an image: a lazy ``(band, y, x)`` DataArray on an output grid.
+
+    Building the result computes nothing (the default grid aside, which projects the scene
+    outline): every chunk is one task run at ``.compute()``, ``write_ortho`` or
+    ``.to_raster``.
+
+    Parameters
+    ----------
+    image : str, os.PathLike or ImageSource
+        The source image, any raster rasterio reads; bands, dtype and nodata are kept.
+    model : SensorModel
+        The image's sensor model (ground -> image through ``project_with_status``).
+    dem : DemSource
+        Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`).
+    grid : OutputGrid, optional
+        Default :meth:`OutputGrid.for_model(model, dem) <geoblock.ortho.grid.OutputGrid.for_model>`
+        (UTM zone, GSD, footprint, aligned).
+    kernel : {"nearest", "bilinear", "bicubic", "sinc"}
+        Resampling kernel.
+    tolerance_px : float
+        Largest lattice interpolation error accepted at the check points, source pixels;
+        ``0`` projects every output pixel exactly.
+    chunks : int or (int, int)
+        Output chunk ``(rows, cols)``, pixels. The values do not depend on it.
+    nodata : float, optional
+        Output value of pixels with no source (outside the image, no DEM height, source
+        nodata); default the source nodata, else NaN for float images and 0 for integers.
+    block_px : int
+        Lattice block side, output pixels (a power of two).
+
+    Returns
+    -------
+    xarray.DataArray, (band, y, x)
+        Dask-backed, of the image's dtype. Coordinates ``band`` (1..n), ``y`` and ``x``
+        (pixel centres, CRS units) and ``spatial_ref`` (attributes ``crs_wkt`` and
+        ``GeoTransform``, as rioxarray reads them); ``attrs["_FillValue"]`` is ``nodata``.
+    """
+    import dask.array as da
+    import xarray as xr
+    from dask.base import tokenize
+    from dask.highlevelgraph import HighLevelGraph
+
+    from geoblock.io.images import open_image
+    from geoblock.ortho.grid import OutputGrid
+    from geoblock.ortho.kernels import KERNELS
+
+    if kernel not in KERNELS:
+        raise ValueError(f"orthorectify: kernel must be one of {KERNELS}, got {kernel!r}")
+    if not tolerance_px >= 0:
+        raise ValueError(f"orthorectify: tolerance_px must be >= 0, got {tolerance_px}")
+    src = open_image(image)
+    if grid is None:
+        grid = OutputGrid.for_model(model, dem)
+    dtype = np.dtype(src.dtype)
+    fill = _default_fill(dtype, src.nodata) if nodata is None else nodata
+    windows = grid.chunks(chunks)
+    row_chunks = tuple(dict.fromkeys((w[0].start, w[0].stop) for w in windows))
+    col_chunks = tuple(dict.fromkeys((w[1].start, w[1].stop) for w in windows))
+    name = "ortho-" + tokenize(src, model, dem, grid, kernel, float(tolerance_px), fill,
+                               int(block_px), row_chunks, col_chunks)
+    dsk = {}
+    for i, (ra, rb) in enumerate(row_chunks):
+        for j, (ca, cb) in enumerate(col_chunks):
+            dsk[(name, 0, i, j)] = (ortho_chunk, src, model, dem, grid, (ra, rb, ca, cb), kernel,
+                                    float(tolerance_px), fill, int(block_px))
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=())
+    array = da.Array(
+        graph, name,
+        chunks=((src.bands,), tuple(b - a for a, b in row_chunks),
+                tuple(b - a for a, b in col_chunks)),
+        dtype=dtype,
+    )
+    return xr.DataArray(
+        array, dims=("band", "y", "x"), coords=_coords(grid, src.bands, fill),
+        attrs={"_FillValue": fill, "grid_mapping": "spatial_ref"}, name="ortho",
+    )

@@ -1,0 +1,474 @@
+"""Source-image coordinates of output pixels: the indirect method on a refined (E, N, h) lattice.
+
+For every output pixel centre, :func:`source_coordinates` gives the image ``(row, col)`` that
+the orthorectifier resamples: pixel centre -> map ``(E, N)`` -> ``(lon, lat)`` -> DEM height
+``h`` (metres above the ellipsoid) -> ``model.project(lon, lat, h)`` (Chen & Lee's indirect
+method). Projecting every pixel exactly is expensive (pushbroom models iterate), so the exact
+model is evaluated on a coarse lattice and interpolated:
+
+* **Blocks.** The full output grid is cut into square blocks of ``block_px`` (a power of two)
+  pixels, anchored at the grid origin. Every decision (lattice spacing, height levels, check
+  points) is taken per block from the block's global indices alone, so a pixel gets the same
+  value whatever the chunk it is computed in: output is identical for any chunking.
+* **Nodes.** In a block, lattice nodes sit on the pixel centres whose global indices are
+  multiples of the spacing ``s`` (a power of two, ``block_px / 4`` at first), nodes ``0 ..
+  block_px / s`` inclusive along each axis. At each node the exact model is evaluated at
+  ``2 m + 1`` ellipsoidal heights evenly spread over the block's DEM height range
+  (``dem.height_range`` of the block's lon/lat box, padded).
+* **Interpolation.** ``lon, lat`` of a pixel are bilinear in the nodes' (the DEM is then
+  sampled there); ``row, col`` are bilinear in the node's ``(E, N)`` at each height level and
+  piecewise quadratic (Lagrange on three consecutive levels) in ``h``.
+* **Refinement.** ``check_points`` pixels of the block, drawn from a generator seeded with
+  ``(seed, block row, block col)``, are projected exactly and compared with the lattice. While
+  the largest error exceeds ``safety * tolerance_px`` the spacing is halved (and the number of
+  height pairs doubled when the height interpolation alone exceeds a quarter of it). A block
+  that still fails at spacing 1 is projected exactly.
+* **Exact fallback.** Pixels whose interpolated coordinates are NaN although they have a DEM
+  height (a node outside the model's domain) are projected exactly. ``tolerance_px == 0``
+  projects every pixel exactly, block by block (a block is one model call whatever the
+  chunking: iterative models may give last-bit differences between batches).
+
+Only the :class:`~geoblock.models.SensorModel` protocol (``project_with_status``) and the
+:class:`~geoblock.dem.DemSource` protocol (``height_with_status``, ``height_range``) are used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+
+from geoblock import coords
+from geoblock._affine import apply as affine_apply
+
+__all__ = ["LatticeInfo", "source_coordinates"]
+
+#: Default side of the lattice blocks, output pixels (a power of two).
+BLOCK_PX = 256
+#: The checked error must be below ``SAFETY * tolerance_px`` (random checks see a sample).
+SAFETY = 0.5
+#: Largest number of quadratic height pairs (``2 m + 1`` levels) per block.
+MAX_HEIGHT_PAIRS = 16
+
+
+@dataclass
+class LatticeInfo:
+    """Diagnostics of one :func:`source_coordinates` call (pass ``info=LatticeInfo()``).
+
+    Attributes
+    ----------
+    spacing : dict
+        ``(block_row, block_col) -> (spacing_px, height_pairs)``; spacing 0 = projected exactly.
+    check_error_px : dict
+        ``(block_row, block_col) -> `` largest check-point error of the accepted lattice, px.
+    exact_points : int
+        Model evaluations at lattice nodes, check points and fallbacks.
+    """
+
+    spacing: dict = field(default_factory=dict)
+    check_error_px: dict = field(default_factory=dict)
+    exact_points: int = 0
+
+
+# ---------------------------------------------------------------------- numba kernels
+@numba.njit(nogil=True, cache=True)
+def _bilinear(nodes, r_off, c_off, nrows, ncols, s):  # pragma: no cover - compiled
+    """(nrows, ncols) bilinear interpolation of ``nodes`` (nr, nc) at block pixels
+    ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``)."""
+    out = np.empty((nrows, ncols))
+    inv = 1.0 / s
+    nr = nodes.shape[0]
+    nc = nodes.shape[1]
+    for i in range(nrows):
+        p = r_off + i
+        kr = p // s
+        if kr > nr - 2:
+            kr = nr - 2
+        tr = (p - kr * s) * inv
+        for j in range(ncols):
+            q = c_off + j
+            kc = q // s
+            if kc > nc - 2:
+                kc = nc - 2
+            tc = (q - kc * s) * inv
+            a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
+            b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
+            out[i, j] = a + tr * (b - a)
+    return out
+
+
+@numba.njit(nogil=True, cache=True)
+def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cover - compiled
+    """Image ``(row, col)`` (nrows, ncols) of block pixels from node values ``rn, cn``
+    (levels, nr, nc): bilinear in the nodes, quadratic in ``h`` between levels
+    ``h0 + k dh``; NaN where ``h`` is NaN."""
+    nrows, ncols = h.shape
+    row = np.empty((nrows, ncols))
+    col = np.empty((nrows, ncols))
+    inv = 1.0 / s
+    nr = rn.shape[1]
+    nc = rn.shape[2]
+    for i in range(nrows):
+        p = r_off + i
+        kr = p // s
+        if kr > nr - 2:
+            kr = nr - 2
+        tr = (p - kr * s) * inv
+        for j in range(ncols):
+            hh = h[i, j]
+            if not np.isfinite(hh):
+                row[i, j] = np.nan
+                col[i, j] = np.nan
+                continue
+            q = c_off + j
+            kc = q // s
+            if kc > nc - 2:
+                kc = nc - 2
+            tc = (q - kc * s) * inv
+            u = (hh - h0) / dh
+            k = int(math.floor(u * 0.5))
+            if k < 0:
+                k = 0
+            elif k > pairs - 1:
+                k = pairs - 1
+            t = u - 2.0 * k
+            w0 = 0.5 * (t - 1.0) * (t - 2.0)
+            w1 = -t * (t - 2.0)
+            w2 = 0.5 * t * (t - 1.0)
+            vr = 0.0
+            vc = 0.0
+            for m in range(3):
+                lev = 2 * k + m
+                w = w0 if m == 0 else (w1 if m == 1 else w2)
+                a = rn[lev, kr, kc] + tc * (rn[lev, kr, kc + 1] - rn[lev, kr, kc])
+                b = rn[lev, kr + 1, kc] + tc * (rn[lev, kr + 1, kc + 1] - rn[lev, kr + 1, kc])
+                vr += w * (a + tr * (b - a))
+                a = cn[lev, kr, kc] + tc * (cn[lev, kr, kc + 1] - cn[lev, kr, kc])
+                b = cn[lev, kr + 1, kc] + tc * (cn[lev, kr + 1, kc + 1] - cn[lev, kr + 1, kc])
+                vc += w * (a + tr * (b - a))
+            row[i, j] = vr
+            col[i, j] = vc
+    return row, col
+
+
+# ---------------------------------------------------------------------- helpers
+def _grid_parts(grid: Any) -> tuple[Any, Any, tuple[int, int]]:
+    return grid.crs, grid.transform, (int(grid.shape[0]), int(grid.shape[1]))
+
+
+def _slice_bounds(sl: slice | None, size: int) -> tuple[int, int]:
+    if sl is None:
+        return 0, size
+    start, stop, step = sl.indices(size)
+    if step != 1:
+        raise ValueError("source_coordinates: window slices must have step 1")
+    return start, max(start, stop)
+
+
+class _Context:
+    """What every block of one call shares: the model, DEM, grid and transformer."""
+
+    def __init__(self, model, dem, crs, transform, shape, info):
+        self.model = model
+        self.dem = dem
+        self.transform = transform
+        self.shape = shape
+        self.to_lonlat = coords.transformer(crs, "EPSG:4326")
+        self.info = info
+
+    def lonlat(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact lon/lat (degrees) of global pixel indices (pixel centres)."""
+        x, y = affine_apply(self.transform, np.asarray(cols, float) + 0.5,
+                            np.asarray(rows, float) + 0.5)
+        lon, lat = self.to_lonlat.transform(x, y)
+        return np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
+
+    def project(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
+        (row, col), _ = self.model.project_with_status(lon, lat, h)
+        if self.info is not None:
+            self.info.exact_points += int(np.size(row))
+        return np.asarray(row, dtype=np.float64), np.asarray(col, dtype=np.float64)
+
+    def height(self, lon, lat) -> np.ndarray:
+        h, _ = self.dem.height_with_status(lon, lat)
+        return np.asarray(h, dtype=np.float64)
+
+    def exact(self, rows, cols) -> tuple[np.ndarray, np.ndarray]:
+        """Exact image coordinates of global pixel indices (any shape)."""
+        lon, lat = self.lonlat(rows, cols)
+        h = self.height(lon, lat)
+        return self.project(lon, lat, h)
+
+
+class _Block:
+    """One lattice block: its spacing decision and its node values."""
+
+    def __init__(self, ctx: _Context, bi: int, bj: int, size: int, tol: float,
+                 n_check: int, seed: int) -> None:
+        self.ctx = ctx
+        self.bi, self.bj, self.size = bi, bj, size
+        rows, cols = ctx.shape
+        self.r0, self.c0 = bi * size, bj * size
+        self.nrows = min(size, rows - self.r0)
+        self.ncols = min(size, cols - self.c0)
+        self.spacing = 0  # 0: exact
+        self.pairs = 1
+        self.nodes: tuple[np.ndarray, ...] | None = None
+        if tol == 0:
+            self.h_range: tuple[float, float] | None = (0.0, 0.0)
+            return
+        self.h_range = self._height_range()
+        if self.h_range is None:
+            return  # no DEM height anywhere in the block: every pixel invalid
+        self._decide(tol, n_check, seed)
+
+    # -- heights
+    def _height_range(self) -> tuple[float, float] | None:
+        """Padded (lo, hi) ellipsoidal heights over the block's lon/lat box, or None."""
+        ctx = self.ctx
+        t = np.linspace(-0.5, 1.0, 7)  # block edges, a bit beyond
+        rr = self.r0 - 0.5 + t * (self.size + 0.5)
+        cc = self.c0 - 0.5 + t * (self.size + 0.5)
+        r_e = np.concatenate([rr, rr, np.full(7, rr[0]), np.full(7, rr[-1])])
+        c_e = np.concatenate([np.full(7, cc[0]), np.full(7, cc[-1]), cc, cc])
+        lon, lat = ctx.lonlat(r_e, c_e)
+        if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
+            return (float(ctx.model.height_range[0]), float(ctx.model.height_range[1]))
+        # one DEM post around the box: a DEM interpolates between posts outside it
+        pad_lat = 1.5 * float(ctx.dem.resolution_m or 0.0) / 111_000.0
+        pad_lon = pad_lat / max(math.cos(math.radians(float(np.abs(lat).max()))), 1e-6)
+        bounds = (float(lon.min()) - pad_lon, max(float(lat.min()) - pad_lat, -90.0),
+                  float(lon.max()) + pad_lon, min(float(lat.max()) + pad_lat, 90.0))
+        lo, hi = ctx.dem.height_range(bounds)
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            return None
+        pad = max(1.0, 0.05 * (hi - lo))
+        return (float(lo) - pad, float(hi) + pad)
+
+    def levels(self, pairs: int) -> np.ndarray:
+        lo, hi = self.h_range  # type: ignore[misc]
+        return np.linspace(lo, hi, 2 * pairs + 1)
+
+    # -- nodes
+    def _node_lonlat(self, s: int) -> tuple[np.ndarray, np.ndarray]:
+        n = self.size // s + 1
+        k = np.arange(n) * s
+        rr, cc = np.meshgrid(self.r0 + k, self.c0 + k, indexing="ij")
+        return self.ctx.lonlat(rr, cc)
+
+    def _nodes(self, s: int, pairs: int, lonlat=None):
+        lon, lat = self._node_lonlat(s) if lonlat is None else lonlat
+        lev = self.levels(pairs)
+        nl = lev.size
+        row, col = self.ctx.project(
+            np.broadcast_to(lon, (nl,) + lon.shape), np.broadcast_to(lat, (nl,) + lat.shape),
+            np.broadcast_to(lev[:, None, None], (nl,) + lon.shape),
+        )
+        return lon, lat, np.ascontiguousarray(row), np.ascontiguousarray(col)
+
+    def _interpolate_points(self, nodes, s, pairs, pr, pc):
+        """Lattice coordinates at block pixels (pr, pc) (1-D, block-local), the production
+        path: interpolated lon/lat -> DEM -> lattice."""
+        lon_n, lat_n, rn, cn = nodes
+        lon = np.array([_bilinear(lon_n, int(a), int(b), 1, 1, s)[0, 0] for a, b in zip(pr, pc)])
+        lat = np.array([_bilinear(lat_n, int(a), int(b), 1, 1, s)[0, 0] for a, b in zip(pr, pc)])
+        h = self.ctx.height(lon, lat)
+        lev = self.levels(pairs)
+        dh = (lev[-1] - lev[0]) / (lev.size - 1)
+        out_r = np.empty(pr.size)
+        out_c = np.empty(pr.size)
+        for k in range(pr.size):
+            r, c = _interp_image(rn, cn, h[k:k + 1].reshape(1, 1), int(pr[k]), int(pc[k]), s,
+                                 lev[0], dh, pairs)
+            out_r[k], out_c[k] = r[0, 0], c[0, 0]
+        return out_r, out_c, lon, lat, h
+
+    def _decide(self, tol: float, n_check: int, seed: int) -> None:
+        ctx = self.ctx
+        rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, self.bi, self.bj])
+        pr = rng.integers(0, self.nrows, n_check)
+        pc = rng.integers(0, self.ncols, n_check)
+        ex_r, ex_c = ctx.exact(self.r0 + pr, self.c0 + pc)
+        ok = np.isfinite(ex_r) & np.isfinite(ex_c)
+        s = max(self.size // 4, 1)
+        pairs = 1
+        while True:
+            nodes = self._nodes(s, pairs)
+            lr, lc, lon, lat, h = self._interpolate_points(nodes, s, pairs, pr, pc)
+            err = np.hypot(lr - ex_r, lc - ex_c)[ok]
+            # a finite exact value the lattice misses (NaN node) is refined too
+            err = np.where(np.isfinite(err), err, np.inf)
+            worst = float(err.max()) if err.size else 0.0
+            if worst <= SAFETY * tol:
+                self.spacing, self.pairs, self.nodes = s, pairs, nodes
+                if ctx.info is not None:
+                    ctx.info.spacing[(self.bi, self.bj)] = (s, pairs)
+                    ctx.info.check_error_px[(self.bi, self.bj)] = worst
+                return
+            # the height interpolation alone, at the checks' own lon/lat and heights
+            lev = self.levels(pairs)
+            hr, hc = ctx.project(np.broadcast_to(lon, (lev.size, lon.size)),
+                                 np.broadcast_to(lat, (lev.size, lat.size)),
+                                 np.broadcast_to(lev[:, None], (lev.size, lon.size)))
+            er, ec = ctx.project(lon, lat, h)
+            qr, qc = _quadratic_in_h(hr, hc, h, lev, pairs)
+            h_err = np.hypot(qr - er, qc - ec)
+            h_err = h_err[np.isfinite(h_err)]
+            h_worst = float(h_err.max()) if h_err.size else 0.0
+            changed = False
+            if h_worst > 0.25 * SAFETY * tol and pairs < MAX_HEIGHT_PAIRS:
+                pairs *= 2
+                changed = True
+            if s > 1 and (not changed or worst > 2 * h_worst):
+                s //= 2
+                changed = True
+            if not changed:
+                break
+        self.spacing, self.nodes = 0, None  # projected exactly
+        if ctx.info is not None:
+            ctx.info.spacing[(self.bi, self.bj)] = (0, 0)
+            ctx.info.check_error_px[(self.bi, self.bj)] = 0.0
+
+    # -- production
+    def _exact_block(self) -> tuple[np.ndarray, np.ndarray]:
+        """Exact coordinates of the whole block, in one model call (the same batch whatever
+        the chunk, so that iterative models give the same bits)."""
+        rr, cc = np.meshgrid(self.r0 + np.arange(self.nrows), self.c0 + np.arange(self.ncols),
+                             indexing="ij")
+        return self.ctx.exact(rr, cc)
+
+    def _lattice(self, r_lo, r_hi, c_lo, c_hi):
+        """Lattice coordinates, interpolated lon/lat and heights of block-local pixels."""
+        s, pairs = self.spacing, self.pairs
+        lon_n, lat_n, rn, cn = self.nodes  # type: ignore[misc]
+        nr, nc = r_hi - r_lo, c_hi - c_lo
+        lon = _bilinear(lon_n, r_lo, c_lo, nr, nc, s)
+        lat = _bilinear(lat_n, r_lo, c_lo, nr, nc, s)
+        h = self.ctx.height(lon, lat)
+        lev = self.levels(pairs)
+        dh = (lev[-1] - lev[0]) / (lev.size - 1)
+        row, col = _interp_image(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs)
+        return row, col, lon, lat, h
+
+    def fill(self, out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+        """Write the coordinates of block-local pixels ``[r_lo, r_hi) x [c_lo, c_hi)`` into
+        ``out_*[dst_r: ..., dst_c: ...]``."""
+        nr, nc = r_hi - r_lo, c_hi - c_lo
+        sl = (slice(dst_r, dst_r + nr), slice(dst_c, dst_c + nc))
+        part = (slice(r_lo, r_hi), slice(c_lo, c_hi))
+        if self.h_range is None:
+            out_r[sl] = np.nan
+            out_c[sl] = np.nan
+            return
+        if self.spacing == 0:
+            row, col = self._exact_block()
+            out_r[sl], out_c[sl] = row[part], col[part]
+            return
+        row, col, lon, lat, h = self._lattice(r_lo, r_hi, c_lo, c_hi)
+        miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
+        if miss.any():
+            # nodes outside the model's domain: those pixels exactly, batched over the whole
+            # block so that the batch (and so the bits) does not depend on the chunk
+            row, col, lon, lat, h = self._lattice(0, self.nrows, 0, self.ncols)
+            miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
+            er, ec = self.ctx.project(lon[miss], lat[miss], h[miss])
+            row[miss], col[miss] = er, ec
+            row, col = row[part], col[part]
+        out_r[sl], out_c[sl] = row, col
+
+
+def _quadratic_in_h(vr, vc, h, lev, pairs):
+    """Piecewise-quadratic interpolation in ``h`` of per-level values ``(levels, N)``."""
+    dh = (lev[-1] - lev[0]) / (lev.size - 1)
+    u = (h - lev[0]) / dh
+    k = np.clip(np.floor(u * 0.5), 0, pairs - 1).astype(np.intp)
+    t = u - 2.0 * k
+    w = (0.5 * (t - 1) * (t - 2), -t * (t - 2), 0.5 * t * (t - 1))
+    idx = np.arange(h.size)
+    qr = sum(w[m] * vr[2 * k + m, idx] for m in range(3))
+    qc = sum(w[m] * vc[2 * k + m, idx] for m in range(3))
+    return qr, qc
+
+
+# ---------------------------------------------------------------------- public
+def source_coordinates(
+    model: Any,
+    dem: Any,
+    grid: Any,
+    *,
+    tolerance_px: float = 0.01,
+    check_points: int = 16,
+    seed: int = 0,
+    window: tuple[slice, slice] | None = None,
+    block_px: int = BLOCK_PX,
+    info: LatticeInfo | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Image coordinates of the output pixel centres of ``grid`` (or of a window of it).
+
+    Parameters
+    ----------
+    model : SensorModel
+        Anything with ``project_with_status(lon, lat, h)`` (ground -> image, pixel-centre
+        convention) and ``height_range``.
+    dem : DemSource
+        Heights above the WGS84 ellipsoid (``height_with_status``, ``height_range``).
+    grid : OutputGrid
+        The output grid (``crs``, ``transform``, ``shape``). Pass the **full** grid and the
+        chunk as ``window``: the lattice is anchored to ``grid``'s origin, so the values do not
+        depend on the chunking. (A sub-grid passed alone is its own anchor.)
+    tolerance_px : float
+        Largest interpolation error accepted at the check points, image pixels (default
+        0.01). ``0``: every pixel is projected exactly.
+    check_points : int
+        Pixels per lattice block compared with the exact model.
+    seed : int
+        Seed of the check points (with the block's global indices).
+    window : (slice, slice), optional
+        ``(rows, cols)`` of ``grid`` to compute (step 1); default the whole grid.
+    block_px : int
+        Side of the lattice blocks, output pixels; a power of two. Part of the result's
+        definition: keep it fixed to compare runs.
+    info : LatticeInfo, optional
+        Filled with the spacing chosen per block and the check errors.
+
+    Returns
+    -------
+    row, col : ndarray, (R, C) float64
+        Source-image pixel-centre coordinates of the window's pixels; NaN where invalid.
+    valid : ndarray, (R, C) bool
+        Finite coordinates: a DEM height exists and the model projects the point.
+
+    Raises
+    ------
+    ValueError
+        ``block_px`` is not a power of two, ``tolerance_px`` is negative, a slice step is
+        not 1.
+    """
+    if block_px < 1 or block_px & (block_px - 1):
+        raise ValueError(f"source_coordinates: block_px must be a power of two, got {block_px}")
+    if not tolerance_px >= 0:
+        raise ValueError(f"source_coordinates: tolerance_px must be >= 0, got {tolerance_px}")
+    crs, transform, shape = _grid_parts(grid)
+    rs, cs = window if window is not None else (None, None)
+    r0, r1 = _slice_bounds(rs, shape[0])
+    c0, c1 = _slice_bounds(cs, shape[1])
+    out_r = np.full((r1 - r0, c1 - c0), np.nan)
+    out_c = np.full((r1 - r0, c1 - c0), np.nan)
+    if out_r.size == 0:
+        return out_r, out_c, np.zeros(out_r.shape, bool)
+    ctx = _Context(model, dem, crs, transform, shape, info)
+    B = int(block_px)
+    for bi in range(r0 // B, (r1 - 1) // B + 1):
+        for bj in range(c0 // B, (c1 - 1) // B + 1):
+            block = _Block(ctx, bi, bj, B, float(tolerance_px), int(check_points), seed)
+            lo_r, hi_r = max(r0, bi * B), min(r1, (bi + 1) * B)
+            lo_c, hi_c = max(c0, bj * B), min(c1, (bj + 1) * B)
+            block.fill(out_r, out_c, lo_r - bi * B, hi_r - bi * B, lo_c - bj * B,
+                       hi_c - bj * B, lo_r - r0, lo_c - c0)
+    valid = np.isfinite(out_r) & np.isfinite(out_c)
+    out_r[~valid] = np.nan
+    out_c[~valid] = np.nan
+    return out_r, out_c, valid
