@@ -240,6 +240,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     from geoblock.cli.dem_info import dem_info
     from geoblock.cli.info import info
     from geoblock.cli.localize import localize
+    from geoblock.cli.mosaic import mosaic
     from geoblock.cli.ortho import ortho
     from geoblock.cli.plugins import plugins
     from geoblock.cli.project import backproject, project
@@ -283,6 +284,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     cli.add_command(localize)
     cli.add_command(dem_info)
     cli.add_command(ortho)
+    cli.add_command(mosaic)
     return cli  # type: ignore[return-value]
 
 

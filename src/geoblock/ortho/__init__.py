@@ -12,6 +12,7 @@ from geoblock.ortho.graph import orthorectify
 from geoblock.ortho.grid import OutputGrid
 from geoblock.ortho.kernels import KERNEL_RADIUS, KERNELS, cast, resample
 from geoblock.ortho.lattice import LatticeInfo, source_coordinates
+from geoblock.ortho.mosaic import mosaic
 
 __all__ = [
     "KERNELS",
@@ -19,6 +20,7 @@ __all__ = [
     "LatticeInfo",
     "OutputGrid",
     "cast",
+    "mosaic",
     "orthorectify",
     "resample",
     "source_coordinates",
