@@ -353,6 +353,30 @@ class _Block:
         row, col = _interp_image(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs)
         return row, col, lon, lat, h
 
+    def lonlat_into(self, lon_w, lat_w, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+        """Interpolated lon/lat of block-local pixels into window arrays (lattice blocks)."""
+        lon_n, lat_n, _, _ = self.nodes  # type: ignore[misc]
+        nr, nc = r_hi - r_lo, c_hi - c_lo
+        sl = (slice(dst_r, dst_r + nr), slice(dst_c, dst_c + nc))
+        lon_w[sl] = _bilinear(lon_n, r_lo, c_lo, nr, nc, self.spacing)
+        lat_w[sl] = _bilinear(lat_n, r_lo, c_lo, nr, nc, self.spacing)
+
+    def fill_lattice(self, out_r, out_c, h, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+        """:meth:`fill` for a lattice block whose pixels' DEM heights ``h`` (nr, nc) are
+        already sampled (at the lon/lat of :meth:`lonlat_into`)."""
+        nr, nc = r_hi - r_lo, c_hi - c_lo
+        sl = (slice(dst_r, dst_r + nr), slice(dst_c, dst_c + nc))
+        _, _, rn, cn = self.nodes  # type: ignore[misc]
+        s, pairs = self.spacing, self.pairs
+        lev = self.levels(pairs)
+        dh = (lev[-1] - lev[0]) / (lev.size - 1)
+        row, col = _interp_image(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs)
+        miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
+        if miss.any():  # the whole-block exact fallback, as fill does
+            self.fill(out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c)
+            return
+        out_r[sl], out_c[sl] = row, col
+
     def fill(self, out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
         """Write the coordinates of block-local pixels ``[r_lo, r_hi) x [c_lo, c_hi)`` into
         ``out_*[dst_r: ..., dst_c: ...]``."""
@@ -461,13 +485,31 @@ def source_coordinates(
         return out_r, out_c, np.zeros(out_r.shape, bool)
     ctx = _Context(model, dem, crs, transform, shape, info)
     B = int(block_px)
+    # Lattice blocks first interpolate their pixels' lon/lat into window-sized arrays; the
+    # DEM is then sampled once for the whole window (DEM heights are pointwise, so batching
+    # them does not change a bit), and each block interpolates its image coordinates.
+    # (one batch per row of blocks: very large batches cost more per point in a DEM's sampler)
     for bi in range(r0 // B, (r1 - 1) // B + 1):
+        lo_r, hi_r = max(r0, bi * B), min(r1, (bi + 1) * B)
+        band = (slice(lo_r - r0, hi_r - r0), slice(None))
+        lon_w = np.full(out_r[band].shape, np.nan)
+        lat_w = np.full(out_r[band].shape, np.nan)
+        pending = []
         for bj in range(c0 // B, (c1 - 1) // B + 1):
             block = _Block(ctx, bi, bj, B, float(tolerance_px), int(check_points), seed)
-            lo_r, hi_r = max(r0, bi * B), min(r1, (bi + 1) * B)
             lo_c, hi_c = max(c0, bj * B), min(c1, (bj + 1) * B)
-            block.fill(out_r, out_c, lo_r - bi * B, hi_r - bi * B, lo_c - bj * B,
-                       hi_c - bj * B, lo_r - r0, lo_c - c0)
+            part = (lo_r - bi * B, hi_r - bi * B, lo_c - bj * B, hi_c - bj * B)
+            if block.h_range is not None and block.spacing > 0:
+                block.lonlat_into(lon_w, lat_w, *part, 0, lo_c - c0)
+                pending.append((block, part))
+            else:
+                block.fill(out_r, out_c, *part, lo_r - r0, lo_c - c0)
+        if pending:
+            h_w = ctx.height(lon_w, lat_w)
+            for block, (a, b, c, d) in pending:
+                dst_c = block.c0 + c - c0
+                h = np.ascontiguousarray(h_w[:, dst_c:dst_c + d - c])
+                block.fill_lattice(out_r, out_c, h, a, b, c, d, lo_r - r0, dst_c)
     valid = np.isfinite(out_r) & np.isfinite(out_c)
     out_r[~valid] = np.nan
     out_c[~valid] = np.nan
