@@ -42,6 +42,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 import pyproj
 from affine import Affine
@@ -121,6 +122,41 @@ class BlockCache:
 
 BLOCK_CACHE = BlockCache(int(float(os.environ.get("GEOBLOCK_DEM_CACHE_MB", "256")) * 2**20))
 """The process-wide DEM block cache shared by every :class:`RasterDem`."""
+
+# ---------------------------------------------------------------------------- dataset handles
+_handles = threading.local()  # per thread: path -> (signature, open rasterio dataset)
+
+
+def _signature(path: str) -> tuple[int, int, int] | None:
+    """What identifies the file's current contents (None for non-local paths)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _dataset(path: str) -> Any:
+    """An open rasterio dataset of ``path``, kept per thread (reopened when the file
+    changes), so that repeated window reads do not pay for ``rasterio.open``."""
+    import rasterio
+
+    cache = getattr(_handles, "datasets", None)
+    if cache is None or getattr(_handles, "pid", None) != os.getpid():
+        # (a forked child never reads through its parent's handles: shared file offsets)
+        cache = _handles.datasets = {}
+        _handles.pid = os.getpid()
+    sig = _signature(path)
+    found = cache.get(path)
+    if found is not None:
+        if found[0] == sig and not found[1].closed:
+            return found[1]
+        found[1].close()
+        del cache[path]
+    ds = rasterio.open(path)
+    cache[path] = (sig, ds)
+    return ds
+
 
 _stats: dict[Any, tuple[float, float, int, int]] = {}  # full-raster statistics, per file+options
 _stats_lock = threading.Lock()
@@ -288,6 +324,7 @@ class RasterDem(DemBase):
         self._nbc = -(-cols // self._block)
         self._store_dtype = np.float64 if self._dtype == np.float64 else np.float32
         self._cache_key = (self._path, self._band, str(self._nodata_policy), self._fill_distance)
+        self._inverse = np.array(tuple(~self._transform)[:6], dtype=np.float64)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -394,15 +431,12 @@ class RasterDem(DemBase):
         return out
 
     def _load_block(self, br: int, bc: int) -> np.ndarray:
-        import rasterio
-
         rows, cols = self._shape
         b, h = self._block, _HALO
         margin = h + (self._fill_distance if self._nodata_policy == "fill" else 0)
         r0, r1 = max(br * b - margin, 0), min((br + 1) * b + margin, rows)
         c0, c1 = max(bc * b - margin, 0), min((bc + 1) * b + margin, cols)
-        with rasterio.open(self._path) as ds:
-            data = self._read(ds, r0, r1, c0, c1)
+        data = self._read(_dataset(self._path), r0, r1, c0, c1)
         if self._nodata_policy == "fill":
             data = self._fill(data)
         elif not isinstance(self._nodata_policy, str):
@@ -435,6 +469,68 @@ class RasterDem(DemBase):
 
     def pixel_coords(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pixel-centre ``(row, col)`` of WGS84 points in the raster (integers at centres)."""
+        lon = np.asarray(lon, float)
+        lat = np.asarray(lat, float)
+        x, y = lonlat_to_crs(self._crs, lon, lat)
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        row = np.empty(x.shape)
+        col = np.empty(x.shape)
+        _nb_pixel_coords(x.reshape(-1), y.reshape(-1), self._inverse, bool(self._lonlat),
+                         float(self._transform.c), row.reshape(-1), col.reshape(-1))
+        return row, col
+
+    def _sample(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ellipsoidal heights (NaN for none) and the mask of points outside the raster.
+
+        Compiled (GIL released): pixel coordinates, coverage and block of every point in one
+        pass, then each block's points sampled in place (bit-identical to
+        :meth:`_sample_reference`)."""
+        rows, cols = self._shape
+        b = self._block
+        nearest = self._interpolation == "nearest"
+        n = 0 if nearest else (2 if self._interpolation == "bilinear" else 4)
+        row, col = self.pixel_coords(lon, lat)
+        shape = row.shape
+        row = row.reshape(-1)
+        col = col.reshape(-1)
+        keys = np.empty(row.size, dtype=np.int64)
+        kmin, kmax = _nb_locate(row, col, rows, cols, b, self._nbc, nearest, keys)
+        out = np.full(row.size, np.nan)
+        if kmin < 0:  # no point inside
+            return out.reshape(shape), np.ones(shape, bool)
+        if kmin == kmax:
+            kr, kc = divmod(int(kmin), self._nbc)
+            block = self._get_block(kr, kc)
+            _nb_sample_keyed(block, row, col, keys, kmin, float(kr * b - _HALO),
+                             float(kc * b - _HALO), n, out)
+        else:
+            idx_in = np.flatnonzero(keys >= 0)
+            k_in = keys[idx_in]
+            order = idx_in[np.argsort(k_in, kind="stable")]
+            sorted_keys = keys[order]
+            starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+            ends = np.append(starts[1:], order.size)
+            for s0, e0 in zip(starts, ends, strict=True):
+                key = int(sorted_keys[s0])
+                kr, kc = divmod(key, self._nbc)
+                block = self._get_block(kr, kc)
+                _nb_sample_index(block, row, col, order[s0:e0], float(kr * b - _HALO),
+                                 float(kc * b - _HALO), n, out)
+        outside = (keys < 0).reshape(shape)
+        out = out.reshape(shape)
+        if self._geoid is not None and not outside.all():
+            inside = ~outside
+            out[inside] = out[inside] + self._geoid.undulation(lon[inside], lat[inside])
+        return out, outside
+
+    def _get_block(self, kr: int, kc: int) -> np.ndarray:
+        return BLOCK_CACHE.get((*self._cache_key, kr, kc), lambda: self._load_block(kr, kc))
+
+    def _pixel_coords_reference(
+        self, lon: np.ndarray, lat: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The numpy reference of :meth:`pixel_coords` (the tests hold the compiled path to it)."""
         x, y = lonlat_to_crs(self._crs, np.asarray(lon, float), np.asarray(lat, float))
         if self._lonlat:
             west = self._transform.c
@@ -442,10 +538,11 @@ class RasterDem(DemBase):
         col, row = affine_apply(~self._transform, *(x, y))
         return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
 
-    def _sample(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Ellipsoidal heights (NaN for none) and the mask of points outside the raster."""
+    def _sample_reference(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The numpy reference of :meth:`_sample` (per-block groups sampled by
+        :func:`~geoblock.dem.sampling.sample`); the tests hold the compiled path to it."""
         rows, cols = self._shape
-        row, col = self.pixel_coords(lon, lat)
+        row, col = self._pixel_coords_reference(lon, lat)
         with np.errstate(invalid="ignore"):
             inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
         out = np.full(lon.shape, np.nan)
@@ -514,19 +611,17 @@ class RasterDem(DemBase):
     def _scan(self, r0: int, r1: int, c0: int, c1: int) -> tuple[float, float, int, int]:
         """Raw (file datum) min, max, nodata count and pixel count of a window, after the
         nodata policy."""
-        import rasterio
-
         lo, hi, nbad, n = np.inf, -np.inf, 0, 0
         step = max(1, _STRIP_PIXELS // max(c1 - c0, 1))
-        with rasterio.open(self._path) as ds:
-            for s in range(r0, r1, step):
-                data = self._read(ds, s, min(s + step, r1), c0, c1)
-                good = np.isfinite(data)
-                n += data.size
-                nbad += int(data.size - good.sum())
-                if good.any():
-                    lo = min(lo, float(data[good].min()))
-                    hi = max(hi, float(data[good].max()))
+        ds = _dataset(self._path)  # kept open per thread: one lattice block = one call
+        for s in range(r0, r1, step):
+            data = self._read(ds, s, min(s + step, r1), c0, c1)
+            good = np.isfinite(data)
+            n += data.size
+            nbad += int(data.size - good.sum())
+            if good.any():
+                lo = min(lo, float(data[good].min()))
+                hi = max(hi, float(data[good].max()))
         if nbad and not isinstance(self._nodata_policy, str):
             lo, hi = min(lo, self._nodata_policy), max(hi, self._nodata_policy)
         return lo, hi, nbad, n
@@ -727,3 +822,132 @@ def _heights_on_grid(dem: DemBase, crs, transform, shape) -> np.ndarray:
     else:
         lon, lat = coords.transformer(horizontal, "EPSG:4326").transform(x, y)
     return dem.height(np.asarray(lon, float), np.asarray(lat, float))
+
+
+# ---------------------------------------------------------------------------- compiled paths
+@numba.njit(nogil=True, cache=True)
+def _nb_pixel_coords(x, y, inv, lonlat, west, row, col):  # pragma: no cover - compiled
+    """Pixel-centre row/col of CRS points ``x, y`` (longitudes wrapped from ``west`` when
+    ``lonlat``), with the inverse geotransform ``inv`` (a, b, c, d, e, f)."""
+    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
+    for k in range(x.size):
+        xx = x[k]
+        yy = y[k]
+        if lonlat:
+            dx = xx - west
+            if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
+                dx = dx % 360.0
+            xx = west + dx
+        col[k] = (a * xx + b * yy + c) - 0.5
+        row[k] = (d * xx + e * yy + f) - 0.5
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover - compiled
+    """Coverage and block of every point: ``keys`` = block index (``-1`` outside); row/col
+    clipped in place to the outermost centres. Returns (min, max) key of the inside points
+    (``(-1, -1)`` when none)."""
+    kmin = -1
+    kmax = -1
+    hi_r = rows - 1.0
+    hi_c = cols - 1.0
+    for k in range(row.size):
+        r = row[k]
+        c = col[k]
+        if not (r >= -0.5 and r <= rows - 0.5 and c >= -0.5 and c <= cols - 0.5):
+            keys[k] = -1
+            continue
+        r = min(max(r, 0.0), hi_r)
+        c = min(max(c, 0.0), hi_c)
+        row[k] = r
+        col[k] = c
+        if nearest:
+            br = int(math.floor(r + 0.5)) // b
+            bc = int(math.floor(c + 0.5)) // b
+        else:
+            br = min(int(math.floor(r)), rows - 1) // b
+            bc = min(int(math.floor(c)), cols - 1) // b
+        key = br * nbc + bc
+        keys[k] = key
+        if kmin < 0 or key < kmin:
+            kmin = key
+        if key > kmax:
+            kmax = key
+    return kmin, kmax
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _keys_weights(t, w):  # pragma: no cover - compiled
+    """Keys weights (a = -0.5), as :func:`geoblock.dem.sampling._keys_w`."""
+    a = -0.5
+    t2 = t * t
+    t3 = t * t * t
+    w[0] = a * t3 - 2 * a * t2 + a * t
+    w[1] = (a + 2) * t3 - (a + 3) * t2 + 1
+    w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t
+    w[3] = -a * t3 + a * t2
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
+    """One point of :func:`geoblock.dem.sampling.sample` (n = 0 nearest, 2 bilinear,
+    4 bicubic), same arithmetic; NaN outside the array."""
+    rows, cols = array.shape
+    if not (np.isfinite(r) and np.isfinite(c)):
+        return np.nan
+    if n == 0:
+        ri = math.floor(r + 0.5)
+        ci = math.floor(c + 0.5)
+        if ri < 0 or ri >= rows or ci < 0 or ci >= cols:
+            return np.nan
+        return np.float64(array[int(ri), int(ci)])
+    first = 0 if n == 2 else -1
+    r0 = math.floor(r)
+    c0 = math.floor(c)
+    if r0 + first < 0 or r0 + first + n - 1 >= rows or c0 + first < 0 or c0 + first + n - 1 >= cols:
+        return np.nan
+    tr = r - r0
+    tc = c - c0
+    if n == 2:  # the loop below unrolled, same operations in the same order
+        ri = int(r0)
+        ci = int(c0)
+        wc0 = 1.0 - tc
+        s0 = 0.0 + array[ri, ci] * wc0
+        s0 = s0 + array[ri, ci + 1] * tc
+        s1 = 0.0 + array[ri + 1, ci] * wc0
+        s1 = s1 + array[ri + 1, ci + 1] * tc
+        acc = 0.0 + (1.0 - tr) * s0
+        return acc + tr * s1
+    else:
+        _keys_weights(tr, wr)
+        _keys_weights(tc, wc)
+    ri = int(r0) + first
+    ci = int(c0) + first
+    acc = 0.0
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += array[ri + i, ci + j] * wc[j]
+        acc += wr[i] * s
+    return acc
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_sample_keyed(block, row, col, keys, key, off_r, off_c, n, out):  # pragma: no cover
+    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at the points of ``key``."""
+    wr = np.empty(4)
+    wc = np.empty(4)
+    for k in range(row.size):
+        if keys[k] == key:
+            out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_sample_index(block, row, col, idx, off_r, off_c, n, out):  # pragma: no cover
+    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at points ``idx``."""
+    wr = np.empty(4)
+    wc = np.empty(4)
+    for m in range(idx.size):
+        k = idx[m]
+        out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
+

@@ -154,6 +154,83 @@ def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cove
     return row, col
 
 
+@numba.njit(nogil=True, cache=True)
+def _bilinear_points(nodes, pr, pc, s):  # pragma: no cover - compiled
+    """:func:`_bilinear` at scattered block pixels ``(pr[k], pc[k])`` (1-D ints): the value
+    ``_bilinear(nodes, pr[k], pc[k], 1, 1, s)[0, 0]``, same arithmetic."""
+    out = np.empty(pr.size)
+    inv = 1.0 / s
+    nr = nodes.shape[0]
+    nc = nodes.shape[1]
+    for k in range(pr.size):
+        p = pr[k]
+        kr = p // s
+        if kr > nr - 2:
+            kr = nr - 2
+        tr = (p - kr * s) * inv
+        q = pc[k]
+        kc = q // s
+        if kc > nc - 2:
+            kc = nc - 2
+        tc = (q - kc * s) * inv
+        a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
+        b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
+        out[k] = a + tr * (b - a)
+    return out
+
+
+@numba.njit(nogil=True, cache=True)
+def _interp_image_points(rn, cn, h, pr, pc, s, h0, dh, pairs):  # pragma: no cover - compiled
+    """:func:`_interp_image` at scattered block pixels ``(pr[k], pc[k])`` with heights
+    ``h[k]`` (1-D), same arithmetic as its 1 x 1 calls."""
+    n = pr.size
+    row = np.empty(n)
+    col = np.empty(n)
+    inv = 1.0 / s
+    nr = rn.shape[1]
+    nc = rn.shape[2]
+    for k in range(n):
+        hh = h[k]
+        if not np.isfinite(hh):
+            row[k] = np.nan
+            col[k] = np.nan
+            continue
+        p = pr[k]
+        kr = p // s
+        if kr > nr - 2:
+            kr = nr - 2
+        tr = (p - kr * s) * inv
+        q = pc[k]
+        kc = q // s
+        if kc > nc - 2:
+            kc = nc - 2
+        tc = (q - kc * s) * inv
+        u = (hh - h0) / dh
+        kk = int(math.floor(u * 0.5))
+        if kk < 0:
+            kk = 0
+        elif kk > pairs - 1:
+            kk = pairs - 1
+        t = u - 2.0 * kk
+        w0 = 0.5 * (t - 1.0) * (t - 2.0)
+        w1 = -t * (t - 2.0)
+        w2 = 0.5 * t * (t - 1.0)
+        vr = 0.0
+        vc = 0.0
+        for m in range(3):
+            lev = 2 * kk + m
+            w = w0 if m == 0 else (w1 if m == 1 else w2)
+            a = rn[lev, kr, kc] + tc * (rn[lev, kr, kc + 1] - rn[lev, kr, kc])
+            b = rn[lev, kr + 1, kc] + tc * (rn[lev, kr + 1, kc + 1] - rn[lev, kr + 1, kc])
+            vr += w * (a + tr * (b - a))
+            a = cn[lev, kr, kc] + tc * (cn[lev, kr, kc + 1] - cn[lev, kr, kc])
+            b = cn[lev, kr + 1, kc] + tc * (cn[lev, kr + 1, kc + 1] - cn[lev, kr + 1, kc])
+            vc += w * (a + tr * (b - a))
+        row[k] = vr
+        col[k] = vc
+    return row, col
+
+
 # ---------------------------------------------------------------------- helpers
 def _grid_parts(grid: Any) -> tuple[Any, Any, tuple[int, int]]:
     return grid.crs, grid.transform, (int(grid.shape[0]), int(grid.shape[1]))
@@ -273,17 +350,15 @@ class _Block:
         """Lattice coordinates at block pixels (pr, pc) (1-D, block-local), the production
         path: interpolated lon/lat -> DEM -> lattice."""
         lon_n, lat_n, rn, cn = nodes
-        lon = np.array([_bilinear(lon_n, int(a), int(b), 1, 1, s)[0, 0] for a, b in zip(pr, pc)])
-        lat = np.array([_bilinear(lat_n, int(a), int(b), 1, 1, s)[0, 0] for a, b in zip(pr, pc)])
+        pr = np.ascontiguousarray(pr, dtype=np.int64)
+        pc = np.ascontiguousarray(pc, dtype=np.int64)
+        lon = _bilinear_points(lon_n, pr, pc, s)
+        lat = _bilinear_points(lat_n, pr, pc, s)
         h = self.ctx.height(lon, lat)
         lev = self.levels(pairs)
         dh = (lev[-1] - lev[0]) / (lev.size - 1)
-        out_r = np.empty(pr.size)
-        out_c = np.empty(pr.size)
-        for k in range(pr.size):
-            r, c = _interp_image(rn, cn, h[k:k + 1].reshape(1, 1), int(pr[k]), int(pc[k]), s,
-                                 lev[0], dh, pairs)
-            out_r[k], out_c[k] = r[0, 0], c[0, 0]
+        out_r, out_c = _interp_image_points(rn, cn, np.ascontiguousarray(h, dtype=np.float64),
+                                            pr, pc, s, lev[0], dh, pairs)
         return out_r, out_c, lon, lat, h
 
     def _decide(self, tol: float, n_check: int, seed: int) -> None:
