@@ -295,8 +295,10 @@ def agreement(data: dict, size: int, out_dir: str, strip_rows: int) -> dict:
     res["geoblock_0.01_vs_geoblock_exact"] = stats(gb_r - ex_r, gb_c - ex_c, gb_ok & ex_ok)
     for et in (0.0, 0.125):
         out = os.path.join(out_dir, f"ramp_{et}.tif")
+        # XSCALE/YSCALE=1: GDAL widens its bilinear kernel when a chunk's source window is
+        # larger than the chunk (a sheared scene), which no longer reproduces a linear ramp
         gdalwarp(data["ramp"], out, data["dem"], strip, et,
-                 extra=("-ot", "Float32", "-dstnodata", "-1"))
+                 extra=("-ot", "Float32", "-dstnodata", "-1", "-wo", "XSCALE=1", "-wo", "YSCALE=1"))
         with rasterio.open(out) as ds:
             gc, gr = ds.read().astype(np.float64)
         os.remove(out)
