@@ -52,7 +52,7 @@ from geoblock._affine import apply as affine_apply
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
-from geoblock.dem.sampling import INTERPOLATIONS, sample
+from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, sample
 from geoblock.errors import DemCoverageError, DemError
 
 __all__ = ["BLOCK_CACHE", "VERTICALS", "BlockCache", "MosaicDem", "RasterDem", "file_vertical"]
@@ -874,62 +874,6 @@ def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover
         if key > kmax:
             kmax = key
     return kmin, kmax
-
-
-@numba.njit(nogil=True, cache=True, inline="always")
-def _keys_weights(t, w):  # pragma: no cover - compiled
-    """Keys weights (a = -0.5), as :func:`geoblock.dem.sampling._keys_w`."""
-    a = -0.5
-    t2 = t * t
-    t3 = t * t * t
-    w[0] = a * t3 - 2 * a * t2 + a * t
-    w[1] = (a + 2) * t3 - (a + 3) * t2 + 1
-    w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t
-    w[3] = -a * t3 + a * t2
-
-
-@numba.njit(nogil=True, cache=True, inline="always")
-def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
-    """One point of :func:`geoblock.dem.sampling.sample` (n = 0 nearest, 2 bilinear,
-    4 bicubic), same arithmetic; NaN outside the array."""
-    rows, cols = array.shape
-    if not (np.isfinite(r) and np.isfinite(c)):
-        return np.nan
-    if n == 0:
-        ri = math.floor(r + 0.5)
-        ci = math.floor(c + 0.5)
-        if ri < 0 or ri >= rows or ci < 0 or ci >= cols:
-            return np.nan
-        return np.float64(array[int(ri), int(ci)])
-    first = 0 if n == 2 else -1
-    r0 = math.floor(r)
-    c0 = math.floor(c)
-    if r0 + first < 0 or r0 + first + n - 1 >= rows or c0 + first < 0 or c0 + first + n - 1 >= cols:
-        return np.nan
-    tr = r - r0
-    tc = c - c0
-    if n == 2:  # the loop below unrolled, same operations in the same order
-        ri = int(r0)
-        ci = int(c0)
-        wc0 = 1.0 - tc
-        s0 = 0.0 + array[ri, ci] * wc0
-        s0 = s0 + array[ri, ci + 1] * tc
-        s1 = 0.0 + array[ri + 1, ci] * wc0
-        s1 = s1 + array[ri + 1, ci + 1] * tc
-        acc = 0.0 + (1.0 - tr) * s0
-        return acc + tr * s1
-    else:
-        _keys_weights(tr, wr)
-        _keys_weights(tc, wc)
-    ri = int(r0) + first
-    ci = int(c0) + first
-    acc = 0.0
-    for i in range(n):
-        s = 0.0
-        for j in range(n):
-            s += array[ri + i, ci + j] * wc[j]
-        acc += wr[i] * s
-    return acc
 
 
 @numba.njit(nogil=True, cache=True)

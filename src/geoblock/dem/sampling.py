@@ -121,39 +121,54 @@ def _keys_w(t, w):  # pragma: no cover - compiled
     w[3] = -a * t3 + a * t2
 
 
+@numba.njit(nogil=True, cache=True, inline="always")
+def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
+    """One point of :func:`sample` (n = 0 nearest, 2 bilinear, 4 bicubic): NaN outside the
+    array or for a non-finite coordinate; NaN taps propagate. ``wr, wc``: (4,) scratch."""
+    rows, cols = array.shape
+    if not (np.isfinite(r) and np.isfinite(c)):
+        return np.nan
+    if n == 0:
+        ri = math.floor(r + 0.5)
+        ci = math.floor(c + 0.5)
+        if ri < 0 or ri >= rows or ci < 0 or ci >= cols:
+            return np.nan
+        return np.float64(array[int(ri), int(ci)])
+    first = 0 if n == 2 else -1
+    r0 = math.floor(r)
+    c0 = math.floor(c)
+    if r0 + first < 0 or r0 + first + n - 1 >= rows or c0 + first < 0 or c0 + first + n - 1 >= cols:
+        return np.nan
+    tr = r - r0
+    tc = c - c0
+    if n == 2:  # the loop below unrolled, same operations in the same order
+        ri = int(r0)
+        ci = int(c0)
+        wc0 = 1.0 - tc
+        s0 = 0.0 + array[ri, ci] * wc0
+        s0 = s0 + array[ri, ci + 1] * tc
+        s1 = 0.0 + array[ri + 1, ci] * wc0
+        s1 = s1 + array[ri + 1, ci + 1] * tc
+        acc = 0.0 + (1.0 - tr) * s0
+        return acc + tr * s1
+    else:
+        _keys_w(tr, wr)
+        _keys_w(tc, wc)
+    ri = int(r0) + first
+    ci = int(c0) + first
+    acc = 0.0
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += array[ri + i, ci + j] * wc[j]
+        acc += wr[i] * s
+    return acc
+
+
 @numba.njit(nogil=True, cache=True)
 def _nb_sample(array, row, col, n, out):  # pragma: no cover - compiled
-    """Bilinear (n = 2) or bicubic (n = 4) values at (row, col) into ``out`` (prefilled NaN):
-    ``sum_i wr[i] * sum_j taps[i, j] * wc[j]``; NaN taps propagate; taps outside -> NaN."""
-    rows, cols = array.shape
-    first = 0 if n == 2 else -1
+    """Bilinear (n = 2) or bicubic (n = 4) values at (row, col) into ``out``."""
     wr = np.empty(4)
     wc = np.empty(4)
     for k in range(row.size):
-        r = row[k]
-        c = col[k]
-        if not (np.isfinite(r) and np.isfinite(c)):
-            continue
-        r0 = math.floor(r)
-        c0 = math.floor(c)
-        if r0 + first < 0 or r0 + first + n - 1 >= rows or c0 + first < 0 or c0 + first + n - 1 >= cols:
-            continue
-        tr = r - r0
-        tc = c - c0
-        if n == 2:
-            wr[0] = 1.0 - tr
-            wr[1] = tr
-            wc[0] = 1.0 - tc
-            wc[1] = tc
-        else:
-            _keys_w(tr, wr)
-            _keys_w(tc, wc)
-        ri = int(r0) + first
-        ci = int(c0) + first
-        acc = 0.0
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += array[ri + i, ci + j] * wc[j]
-            acc += wr[i] * s
-        out[k] = acc
+        out[k] = _nb_point(array, row[k], col[k], n, wr, wc)

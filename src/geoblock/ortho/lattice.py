@@ -74,29 +74,59 @@ class LatticeInfo:
 
 
 # ---------------------------------------------------------------------- numba kernels
+@numba.njit(inline="always")
+def _cell(p, s, inv, n):  # pragma: no cover - compiled
+    """Node cell ``k`` and fraction ``t`` of block pixel ``p`` (nodes at multiples of ``s``)."""
+    k = p // s
+    if k > n - 2:
+        k = n - 2
+    return k, (p - k * s) * inv
+
+
+@numba.njit(inline="always")
+def _lerp2(nodes, kr, kc, tr, tc):  # pragma: no cover - compiled
+    a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
+    b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
+    return a + tr * (b - a)
+
+
+@numba.njit(inline="always")
+def _image_point(rn, cn, hh, kr, kc, tr, tc, h0, dh, pairs):  # pragma: no cover - compiled
+    """Image (row, col) at one pixel: bilinear in the nodes, quadratic in ``hh`` between
+    levels ``h0 + k dh``; NaN for a NaN height."""
+    if not np.isfinite(hh):
+        return np.nan, np.nan
+    u = (hh - h0) / dh
+    k = int(math.floor(u * 0.5))
+    if k < 0:
+        k = 0
+    elif k > pairs - 1:
+        k = pairs - 1
+    t = u - 2.0 * k
+    w0 = 0.5 * (t - 1.0) * (t - 2.0)
+    w1 = -t * (t - 2.0)
+    w2 = 0.5 * t * (t - 1.0)
+    vr = 0.0
+    vc = 0.0
+    for m in range(3):
+        lev = 2 * k + m
+        w = w0 if m == 0 else (w1 if m == 1 else w2)
+        vr += w * _lerp2(rn[lev], kr, kc, tr, tc)
+        vc += w * _lerp2(cn[lev], kr, kc, tr, tc)
+    return vr, vc
+
+
 @numba.njit(nogil=True, cache=True)
 def _bilinear(nodes, r_off, c_off, nrows, ncols, s):  # pragma: no cover - compiled
     """(nrows, ncols) bilinear interpolation of ``nodes`` (nr, nc) at block pixels
     ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``)."""
     out = np.empty((nrows, ncols))
     inv = 1.0 / s
-    nr = nodes.shape[0]
-    nc = nodes.shape[1]
     for i in range(nrows):
-        p = r_off + i
-        kr = p // s
-        if kr > nr - 2:
-            kr = nr - 2
-        tr = (p - kr * s) * inv
+        kr, tr = _cell(r_off + i, s, inv, nodes.shape[0])
         for j in range(ncols):
-            q = c_off + j
-            kc = q // s
-            if kc > nc - 2:
-                kc = nc - 2
-            tc = (q - kc * s) * inv
-            a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
-            b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
-            out[i, j] = a + tr * (b - a)
+            kc, tc = _cell(c_off + j, s, inv, nodes.shape[1])
+            out[i, j] = _lerp2(nodes, kr, kc, tr, tc)
     return out
 
 
@@ -109,125 +139,37 @@ def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cove
     row = np.empty((nrows, ncols))
     col = np.empty((nrows, ncols))
     inv = 1.0 / s
-    nr = rn.shape[1]
-    nc = rn.shape[2]
     for i in range(nrows):
-        p = r_off + i
-        kr = p // s
-        if kr > nr - 2:
-            kr = nr - 2
-        tr = (p - kr * s) * inv
+        kr, tr = _cell(r_off + i, s, inv, rn.shape[1])
         for j in range(ncols):
-            hh = h[i, j]
-            if not np.isfinite(hh):
-                row[i, j] = np.nan
-                col[i, j] = np.nan
-                continue
-            q = c_off + j
-            kc = q // s
-            if kc > nc - 2:
-                kc = nc - 2
-            tc = (q - kc * s) * inv
-            u = (hh - h0) / dh
-            k = int(math.floor(u * 0.5))
-            if k < 0:
-                k = 0
-            elif k > pairs - 1:
-                k = pairs - 1
-            t = u - 2.0 * k
-            w0 = 0.5 * (t - 1.0) * (t - 2.0)
-            w1 = -t * (t - 2.0)
-            w2 = 0.5 * t * (t - 1.0)
-            vr = 0.0
-            vc = 0.0
-            for m in range(3):
-                lev = 2 * k + m
-                w = w0 if m == 0 else (w1 if m == 1 else w2)
-                a = rn[lev, kr, kc] + tc * (rn[lev, kr, kc + 1] - rn[lev, kr, kc])
-                b = rn[lev, kr + 1, kc] + tc * (rn[lev, kr + 1, kc + 1] - rn[lev, kr + 1, kc])
-                vr += w * (a + tr * (b - a))
-                a = cn[lev, kr, kc] + tc * (cn[lev, kr, kc + 1] - cn[lev, kr, kc])
-                b = cn[lev, kr + 1, kc] + tc * (cn[lev, kr + 1, kc + 1] - cn[lev, kr + 1, kc])
-                vc += w * (a + tr * (b - a))
-            row[i, j] = vr
-            col[i, j] = vc
+            kc, tc = _cell(c_off + j, s, inv, rn.shape[2])
+            row[i, j], col[i, j] = _image_point(rn, cn, h[i, j], kr, kc, tr, tc, h0, dh, pairs)
     return row, col
 
 
 @numba.njit(nogil=True, cache=True)
 def _bilinear_points(nodes, pr, pc, s):  # pragma: no cover - compiled
-    """:func:`_bilinear` at scattered block pixels ``(pr[k], pc[k])`` (1-D ints): the value
-    ``_bilinear(nodes, pr[k], pc[k], 1, 1, s)[0, 0]``, same arithmetic."""
+    """:func:`_bilinear` at scattered block pixels ``(pr[k], pc[k])`` (1-D ints)."""
     out = np.empty(pr.size)
     inv = 1.0 / s
-    nr = nodes.shape[0]
-    nc = nodes.shape[1]
     for k in range(pr.size):
-        p = pr[k]
-        kr = p // s
-        if kr > nr - 2:
-            kr = nr - 2
-        tr = (p - kr * s) * inv
-        q = pc[k]
-        kc = q // s
-        if kc > nc - 2:
-            kc = nc - 2
-        tc = (q - kc * s) * inv
-        a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
-        b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
-        out[k] = a + tr * (b - a)
+        kr, tr = _cell(pr[k], s, inv, nodes.shape[0])
+        kc, tc = _cell(pc[k], s, inv, nodes.shape[1])
+        out[k] = _lerp2(nodes, kr, kc, tr, tc)
     return out
 
 
 @numba.njit(nogil=True, cache=True)
 def _interp_image_points(rn, cn, h, pr, pc, s, h0, dh, pairs):  # pragma: no cover - compiled
     """:func:`_interp_image` at scattered block pixels ``(pr[k], pc[k])`` with heights
-    ``h[k]`` (1-D), same arithmetic as its 1 x 1 calls."""
-    n = pr.size
-    row = np.empty(n)
-    col = np.empty(n)
+    ``h[k]`` (1-D)."""
+    row = np.empty(pr.size)
+    col = np.empty(pr.size)
     inv = 1.0 / s
-    nr = rn.shape[1]
-    nc = rn.shape[2]
-    for k in range(n):
-        hh = h[k]
-        if not np.isfinite(hh):
-            row[k] = np.nan
-            col[k] = np.nan
-            continue
-        p = pr[k]
-        kr = p // s
-        if kr > nr - 2:
-            kr = nr - 2
-        tr = (p - kr * s) * inv
-        q = pc[k]
-        kc = q // s
-        if kc > nc - 2:
-            kc = nc - 2
-        tc = (q - kc * s) * inv
-        u = (hh - h0) / dh
-        kk = int(math.floor(u * 0.5))
-        if kk < 0:
-            kk = 0
-        elif kk > pairs - 1:
-            kk = pairs - 1
-        t = u - 2.0 * kk
-        w0 = 0.5 * (t - 1.0) * (t - 2.0)
-        w1 = -t * (t - 2.0)
-        w2 = 0.5 * t * (t - 1.0)
-        vr = 0.0
-        vc = 0.0
-        for m in range(3):
-            lev = 2 * kk + m
-            w = w0 if m == 0 else (w1 if m == 1 else w2)
-            a = rn[lev, kr, kc] + tc * (rn[lev, kr, kc + 1] - rn[lev, kr, kc])
-            b = rn[lev, kr + 1, kc] + tc * (rn[lev, kr + 1, kc + 1] - rn[lev, kr + 1, kc])
-            vr += w * (a + tr * (b - a))
-            a = cn[lev, kr, kc] + tc * (cn[lev, kr, kc + 1] - cn[lev, kr, kc])
-            b = cn[lev, kr + 1, kc] + tc * (cn[lev, kr + 1, kc + 1] - cn[lev, kr + 1, kc])
-            vc += w * (a + tr * (b - a))
-        row[k] = vr
-        col[k] = vc
+    for k in range(pr.size):
+        kr, tr = _cell(pr[k], s, inv, rn.shape[1])
+        kc, tc = _cell(pc[k], s, inv, rn.shape[2])
+        row[k], col[k] = _image_point(rn, cn, h[k], kr, kc, tr, tc, h0, dh, pairs)
     return row, col
 
 
