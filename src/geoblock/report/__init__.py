@@ -1,0 +1,38 @@
+"""Accuracy reports: the papers' tables (Markdown, CSV) and figures (matplotlib, Agg).
+
+Tables and figures take statistics and plain arrays
+(:class:`~geoblock.adjust.AccuracyStats`, :class:`~geoblock.adjust.PointErrors`, numpy
+arrays), never adjustment or simulator objects, so any workflow can report with them.
+"""
+
+from geoblock.report.figures import (
+    KIND_STYLES,
+    error_vector_plot,
+    residual_vs_distance,
+    rmse_vs_gcp_count,
+    save_figure,
+    to_local_en,
+)
+from geoblock.report.tables import (
+    AGUILAR_COLUMNS,
+    DEFAULT_COLUMNS,
+    IMAGE_COLUMNS,
+    comparison_table,
+    stats_table,
+    write_table,
+)
+
+__all__ = [
+    "AGUILAR_COLUMNS",
+    "DEFAULT_COLUMNS",
+    "IMAGE_COLUMNS",
+    "KIND_STYLES",
+    "comparison_table",
+    "error_vector_plot",
+    "residual_vs_distance",
+    "rmse_vs_gcp_count",
+    "save_figure",
+    "stats_table",
+    "to_local_en",
+    "write_table",
+]
