@@ -73,6 +73,54 @@ def test_sample_matches_reference(dem_files, name, interpolation, nodata):
     assert np.array_equal(r1, r2, equal_nan=True) and np.array_equal(c1, c2, equal_nan=True)
 
 
+def _cluster(dem, n, seed, centre, spread_px):
+    """Points within ``spread_px`` DEM pixels of the fractional pixel ``centre`` (some past
+    the raster's edges when ``centre`` is near one), as an ortho chunk's are."""
+    rng = np.random.default_rng(seed)
+    r = centre[0] * dem.shape[0] + rng.uniform(-spread_px, spread_px, n)
+    c = centre[1] * dem.shape[1] + rng.uniform(-spread_px, spread_px, n)
+    x, y = raster_mod.affine_apply(dem.transform, c + 0.5, r + 0.5)
+    if not dem._lonlat:
+        from geoblock import coords
+
+        x, y = coords.transformer(dem.crs.sub_crs_list[0], "EPSG:4326").transform(x, y)
+    return np.asarray(x, float), np.asarray(y, float)
+
+
+@pytest.mark.parametrize("name", ["small", "big", "utm"])
+@pytest.mark.parametrize("interpolation", ["nearest", "bilinear", "bicubic"])
+@pytest.mark.parametrize("centre", [(0.5, 0.5), (0.22, 0.49), (0.0, 0.0), (1.0, 0.7)])
+def test_window_path_matches_reference(dem_files, name, interpolation, centre, monkeypatch):
+    """Compact point sets take the one-pass window path (one block, or several assembled:
+    "big" straddles two or four 512-post blocks), bit-identical to the reference,
+    edges and nodata holes included."""
+    dem = RasterDem(dem_files[name], interpolation=interpolation, vertical="ellipsoid")
+    lon, lat = _cluster(dem, 30000, 5, centre, 40.0)
+    taken = []
+    real = raster_mod._nb_sample_window
+    monkeypatch.setattr(raster_mod, "_nb_sample_window",
+                        lambda *a: taken.append(a[8].shape) or real(*a))
+    fast, out_fast = dem._sample(lon, lat)
+    assert taken, "the window path was not taken"
+    ref, out_ref = dem._sample_reference(lon, lat)
+    np.testing.assert_array_equal(out_fast, out_ref)
+    assert np.array_equal(fast, ref, equal_nan=True)
+    if name == "big" and centre == (0.22, 0.49):  # assembled from four 512-post blocks
+        assert taken[0][0] < 100 and taken[0][1] < 100
+
+
+def test_window_path_declines_spread_points(dem_files, monkeypatch):
+    """Few points over many blocks: the per-block path, not a huge window."""
+    dem = RasterDem(dem_files["big"], vertical="ellipsoid")
+    w, s, e, n = dem.bounds
+    lon = np.array([w + 0.01, e - 0.01, w + 0.01])
+    lat = np.array([s + 0.01, n - 0.01, n - 0.01])
+    called = []
+    monkeypatch.setattr(raster_mod, "_nb_sample_window", lambda *a: called.append(1))
+    h, outside = dem._sample(lon, lat)
+    assert not called and np.isfinite(h).all() and not outside.any()
+
+
 def test_sample_all_outside_and_empty(dem_files):
     dem = RasterDem(dem_files["small"])
     h, out = dem._sample(np.array([0.0, 1.0]), np.array([0.0, 1.0]))

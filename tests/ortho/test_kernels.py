@@ -198,3 +198,40 @@ def test_cast_rejects_unrepresentable_fill():
         cast(np.zeros((1, 2)), np.array([True, False]), np.uint8, np.nan)
     with pytest.raises(ValueError):
         cast(np.zeros((1, 2)), np.array([True, False]), np.uint8, -1)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.uint16, np.int32, np.float32,
+                                   np.float64, bool, np.int64])
+def test_resample_cast_equals_the_two_steps(kernel, dtype):
+    """The orthorectifier's one-pass path gives the bytes of cast(resample(...)): rounding
+    half away from zero, clipping to the dtype, fill where invalid (edges, nodata, NaN)."""
+    rng = np.random.default_rng(11)
+    if dtype is bool:
+        src = rng.integers(0, 2, (2, 40, 50)).astype(bool)
+    else:
+        lo, hi = (-300.0, 300.0) if np.dtype(dtype).kind != "u" else (0.0, 300.0)
+        src = rng.uniform(lo, hi, (2, 40, 50)).astype(dtype)
+        src[:, 5:8, 10:14] = 7  # a nodata patch (every band)
+        src[0, 20, 20] = 7
+    if np.dtype(dtype).kind == "f":
+        src[1, 30, 30] = np.nan
+    row = rng.uniform(-3, 43, 5000)
+    col = rng.uniform(-3, 53, 5000)
+    row[:50] = np.round(row[:50])  # integer coordinates need their own pixel only
+    col[:10] = np.nan
+    nodata = None if dtype is bool else 7
+    fill = 0 if dtype is bool else 5
+    values, valid = resample(src, row, col, kernel, nodata=nodata)
+    expected = cast(values, valid, dtype, fill)
+    out, ok = kernels.resample_cast(src, row, col, kernel, dtype, fill, nodata=nodata)
+    assert out.dtype == expected.dtype
+    np.testing.assert_array_equal(ok, valid)
+    assert np.array_equal(out, expected, equal_nan=True)
+    assert 0 < valid.sum() < valid.size
+
+
+def test_resample_cast_refuses_unrepresentable_fill():
+    with pytest.raises(ValueError, match="not representable"):
+        kernels.resample_cast(np.zeros((1, 4, 4), np.uint8), [1.0], [1.0], "bilinear",
+                              np.uint8, fill=-1)

@@ -78,7 +78,7 @@ def test_dataarray_layout(scene):
 def test_building_the_graph_computes_nothing(scene, monkeypatch):
     path, model, dem, grid = scene
     calls = {"coords": 0, "resample": 0}
-    real_coords, real_resample = graph_module.source_coordinates, graph_module.resample
+    real_coords, real_resample = graph_module.source_coordinates, graph_module.resample_cast
 
     def counting_coords(*args, **kwargs):
         calls["coords"] += 1
@@ -89,7 +89,7 @@ def test_building_the_graph_computes_nothing(scene, monkeypatch):
         return real_resample(*args, **kwargs)
 
     monkeypatch.setattr(graph_module, "source_coordinates", counting_coords)
-    monkeypatch.setattr(graph_module, "resample", counting_resample)
+    monkeypatch.setattr(graph_module, "resample_cast", counting_resample)
 
     def refuse(*args, **kwargs):
         raise AssertionError("the graph was computed")

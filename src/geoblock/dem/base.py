@@ -42,9 +42,14 @@ class DemBase(abc.ABC):
         """(*S,) ellipsoidal heights (metres) and statuses: ``NO_DEM`` where NaN,
         ``INVALID_INPUT`` for non-finite coordinates."""
         lon, lat = broadcast_float64(lon=lon, lat=lat)
+        ok = np.isfinite(lon) & np.isfinite(lat)
+        if ok.all():  # the common case, without the gather/scatter copies
+            h = np.asarray(self._heights(lon.reshape(-1), lat.reshape(-1))).reshape(lon.shape)
+            found = np.isfinite(h)
+            status = np.where(found, np.uint8(Status.CONVERGED), np.uint8(Status.NO_DEM))
+            return h, status.astype(np.uint8, copy=False)
         h = np.full(lon.shape, np.nan)
         status = np.full(lon.shape, np.uint8(Status.INVALID_INPUT), dtype=np.uint8)
-        ok = np.isfinite(lon) & np.isfinite(lat)
         if ok.any():
             h[ok] = self._heights(lon[ok], lat[ok])
             status[ok] = np.where(np.isfinite(h[ok]), Status.CONVERGED, Status.NO_DEM)

@@ -52,7 +52,7 @@ from geoblock._affine import apply as affine_apply
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
-from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, sample
+from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s, sample
 from geoblock.errors import DemCoverageError, DemError
 
 __all__ = ["BLOCK_CACHE", "VERTICALS", "BlockCache", "MosaicDem", "RasterDem", "file_vertical"]
@@ -61,6 +61,9 @@ VERTICALS = ("ellipsoid", "geoid")
 """Accepted values of ``vertical=`` (besides ``None``: from the file)."""
 
 _HALO = 2  # pixels around each block: enough for bicubic's 4 x 4 taps
+#: :meth:`RasterDem._sample_window` assembles a window of several blocks only when it has
+#: at most this many posts per point sampled (plus 65536): beyond, the per-block path wins
+_WINDOW_POSTS_PER_POINT = 2.0
 _BLOCK = 512
 _WHOLE = 2048  # rasters up to this size (both sides) are one block
 _STRIP_PIXELS = 1 << 22  # pixels per read when scanning a window for statistics
@@ -490,6 +493,9 @@ class RasterDem(DemBase):
         b = self._block
         nearest = self._interpolation == "nearest"
         n = 0 if nearest else (2 if self._interpolation == "bilinear" else 4)
+        fused = self._sample_window(lon, lat, n)
+        if fused is not None:
+            return fused
         row, col = self.pixel_coords(lon, lat)
         shape = row.shape
         row = row.reshape(-1)
@@ -522,6 +528,78 @@ class RasterDem(DemBase):
         if self._geoid is not None and not outside.all():
             inside = ~outside
             out[inside] = out[inside] + self._geoid.undulation(lon[inside], lat[inside])
+        return out, outside
+
+    def _sample_window(
+        self, lon: np.ndarray, lat: np.ndarray, n: int
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`_sample` in one compiled pass over the points, for points that span a small
+        part of the raster (an orthorectifier's chunk, a lattice): the blocks they touch are
+        sampled as one window (one cached block as is, several assembled), the pixel
+        coordinates, coverage and sample computed per point without intermediate arrays.
+
+        ``None`` when it does not apply (no finite point, or points spread over more posts
+        than ``_WINDOW_POSTS_PER_POINT`` each): :meth:`_sample`'s general path then runs.
+        Bit-identical to it (subtracting a window's integer origin from a pixel coordinate is
+        exact)."""
+        lon = np.asarray(lon, float)
+        lat = np.asarray(lat, float)
+        shape = lon.shape
+        if lon.size == 0:
+            return None
+        x, y = lonlat_to_crs(self._crs, lon, lat)
+        x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+        y = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+        x_lo, x_hi = float(np.fmin.reduce(x)), float(np.fmax.reduce(x))
+        y_lo, y_hi = float(np.fmin.reduce(y)), float(np.fmax.reduce(y))
+        if not all(math.isfinite(v) for v in (x_lo, x_hi, y_lo, y_hi)):
+            return None
+        west = float(self._transform.c)
+        if self._lonlat and not (x_lo >= west and x_hi < west + 360.0):
+            # the box of the longitudes as the kernel wraps them (it wraps x itself)
+            wrapped = west + (x - west) % 360.0
+            x_lo, x_hi = float(np.fmin.reduce(wrapped)), float(np.fmax.reduce(wrapped))
+        rows, cols = self._shape
+        b, h = self._block, _HALO
+        cc, rr = affine_apply(~self._transform, np.array([x_lo, x_lo, x_hi, x_hi]),
+                              np.array([y_lo, y_hi, y_lo, y_hi]))
+        r_lo = min(max(math.floor(float(np.min(rr))) - 2, 0), rows - 1)
+        r_hi = min(max(math.floor(float(np.max(rr))) + 1, 0), rows - 1)
+        c_lo = min(max(math.floor(float(np.min(cc))) - 2, 0), cols - 1)
+        c_hi = min(max(math.floor(float(np.max(cc))) + 1, 0), cols - 1)
+        kr0, kr1 = r_lo // b, r_hi // b
+        kc0, kc1 = c_lo // b, c_hi // b
+        if kr0 == kr1 and kc0 == kc1:
+            window = self._get_block(kr0, kc0)
+            off_r, off_c = kr0 * b - h, kc0 * b - h
+        else:
+            # rows/cols [r0, r1) x [c0, c1) of the raster edge-padded by the halo, copied from
+            # the blocks (each is that padded raster around its core: overlaps agree)
+            off_r, r1 = r_lo - h, r_hi + h + 1
+            off_c, c1 = c_lo - h, c_hi + h + 1
+            if (r1 - off_r) * (c1 - off_c) > _WINDOW_POSTS_PER_POINT * x.size + 65536:
+                return None
+            window = np.empty((r1 - off_r, c1 - off_c), dtype=self._store_dtype)
+            for kr in range(kr0, kr1 + 1):
+                for kc in range(kc0, kc1 + 1):
+                    block = self._get_block(kr, kc)
+                    br, bc = kr * b - h, kc * b - h  # the block's origin
+                    a0, a1 = max(off_r, br), min(r1, br + b + 2 * h)
+                    e0, e1 = max(off_c, bc), min(c1, bc + b + 2 * h)
+                    window[a0 - off_r:a1 - off_r, e0 - off_c:e1 - off_c] = \
+                        block[a0 - br:a1 - br, e0 - bc:e1 - bc]
+        out = np.empty(x.size)
+        outside = np.empty(x.size, dtype=np.bool_)
+        _nb_sample_window(x, y, self._inverse, bool(self._lonlat), west, rows, cols, n, window,
+                          float(off_r), float(off_c), out, outside)
+        out = out.reshape(shape)
+        outside = outside.reshape(shape)
+        if self._geoid is not None and not outside.all():
+            if outside.any():
+                inside = ~outside
+                out[inside] = out[inside] + self._geoid.undulation(lon[inside], lat[inside])
+            else:
+                out += self._geoid.undulation(lon, lat)
         return out, outside
 
     def _get_block(self, kr: int, kc: int) -> np.ndarray:
@@ -895,3 +973,32 @@ def _nb_sample_index(block, row, col, idx, off_r, off_c, n, out):  # pragma: no 
         k = idx[m]
         out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
 
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _nb_sample_window(x, y, inv, lonlat, west, rows, cols, n, window, off_r, off_c, out,
+                      outside):  # pragma: no cover - compiled
+    """:func:`_nb_pixel_coords`, :func:`_nb_locate` and the sampling of ``window`` (origin at
+    raster pixel ``off_r, off_c``) in one pass: heights into ``out`` (NaN outside), the
+    coverage into ``outside``."""
+    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
+    hi_r = rows - 1.0
+    hi_c = cols - 1.0
+    for k in range(x.size):
+        xx = x[k]
+        yy = y[k]
+        if lonlat:
+            dx = xx - west
+            if not (dx >= 0.0 and dx < 360.0):
+                dx = dx % 360.0
+            xx = west + dx
+        cc = (a * xx + b * yy + c) - 0.5
+        rr = (d * xx + e * yy + f) - 0.5
+        if not (rr >= -0.5 and rr <= rows - 0.5 and cc >= -0.5 and cc <= cols - 0.5):
+            out[k] = np.nan
+            outside[k] = True
+            continue
+        rr = min(max(rr, 0.0), hi_r)
+        cc = min(max(cc, 0.0), hi_c)
+        outside[k] = False
+        out[k] = _nb_point_s(window, rr - off_r, cc - off_c, n)

@@ -109,22 +109,23 @@ def sample_reference(array: np.ndarray, row: np.ndarray, col: np.ndarray, n: int
     return out
 
 
-@numba.njit(nogil=True, cache=True)
-def _keys_w(t, w):  # pragma: no cover - compiled
-    """Keys weights (a = -0.5) for taps at -1, 0, 1, 2, as :func:`_keys`."""
+@numba.njit(inline="always")
+def _keys4(t):  # pragma: no cover - compiled
+    """Keys weights (a = -0.5) for taps at -1, 0, 1, 2, as :func:`_keys`, as a tuple (no
+    scratch array: hot loops stay free of array reference counting)."""
     a = -0.5
     t2 = t * t
     t3 = t * t * t
-    w[0] = a * t3 - 2 * a * t2 + a * t
-    w[1] = (a + 2) * t3 - (a + 3) * t2 + 1
-    w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t
-    w[3] = -a * t3 + a * t2
+    return (a * t3 - 2 * a * t2 + a * t,
+            (a + 2) * t3 - (a + 3) * t2 + 1,
+            -(a + 2) * t3 + (2 * a + 3) * t2 - a * t,
+            -a * t3 + a * t2)
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
-def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
+@numba.njit(inline="always")
+def _nb_point_s(array, r, c, n):  # pragma: no cover - compiled
     """One point of :func:`sample` (n = 0 nearest, 2 bilinear, 4 bicubic): NaN outside the
-    array or for a non-finite coordinate; NaN taps propagate. ``wr, wc``: (4,) scratch."""
+    array or for a non-finite coordinate; NaN taps propagate. Scalars only."""
     rows, cols = array.shape
     if not (np.isfinite(r) and np.isfinite(c)):
         return np.nan
@@ -141,7 +142,7 @@ def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
         return np.nan
     tr = r - r0
     tc = c - c0
-    if n == 2:  # the loop below unrolled, same operations in the same order
+    if n == 2:
         ri = int(r0)
         ci = int(c0)
         wc0 = 1.0 - tc
@@ -151,18 +152,25 @@ def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
         s1 = s1 + array[ri + 1, ci + 1] * tc
         acc = 0.0 + (1.0 - tr) * s0
         return acc + tr * s1
-    else:
-        _keys_w(tr, wr)
-        _keys_w(tc, wc)
-    ri = int(r0) + first
-    ci = int(c0) + first
+    wr = _keys4(tr)
+    wc = _keys4(tc)
+    ri = int(r0) - 1
+    ci = int(c0) - 1
     acc = 0.0
-    for i in range(n):
+    for i in range(4):
         s = 0.0
-        for j in range(n):
-            s += array[ri + i, ci + j] * wc[j]
+        s += array[ri + i, ci] * wc[0]
+        s += array[ri + i, ci + 1] * wc[1]
+        s += array[ri + i, ci + 2] * wc[2]
+        s += array[ri + i, ci + 3] * wc[3]
         acc += wr[i] * s
     return acc
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
+    """:func:`_nb_point_s` (``wr, wc``: unused scratch, kept for the callers' signature)."""
+    return _nb_point_s(array, r, c, n)
 
 
 @numba.njit(nogil=True, cache=True)

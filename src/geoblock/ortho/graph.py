@@ -10,8 +10,8 @@ the chunk's window - and:
    chunking);
 2. reads the source window they need: the bounding box of the finite coordinates padded by
    ``KERNEL_RADIUS[kernel] + 1`` pixels, clipped to the image (nothing if it is empty);
-3. resamples (:func:`~geoblock.ortho.kernels.resample`) and casts to the source dtype
-   (:func:`~geoblock.ortho.kernels.cast`), ``nodata`` where invalid.
+3. resamples and casts to the source dtype in one pass
+   (:func:`~geoblock.ortho.kernels.resample_cast`), ``nodata`` where invalid.
 
 Keys are ``ortho-<tokenize(inputs)>``: the same inputs give the same graph.
 """
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample
+from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample_cast
 from geoblock.ortho.lattice import BLOCK_PX, source_coordinates
 
 __all__ = ["ortho_chunk", "orthorectify"]
@@ -73,27 +73,31 @@ def ortho_chunk(
     """
     r0, r1, c0, c1 = window
     dtype = np.dtype(image.dtype)
-    row, col, valid = source_coordinates(
+    row, col, _valid = source_coordinates(
         model, dem, grid, tolerance_px=tolerance_px,
         window=(slice(r0, r1), slice(c0, c1)), block_px=block_px,
     )
     out_shape = (image.bands, r1 - r0, c1 - c0)
     rows, cols = image.shape
     pad = KERNEL_RADIUS[kernel] + 1
-    if valid.any():
-        wr0 = max(math.floor(float(row[valid].min())) - pad, 0)
-        wr1 = min(math.ceil(float(row[valid].max())) + pad + 1, rows)
-        wc0 = max(math.floor(float(col[valid].min())) - pad, 0)
-        wc1 = min(math.ceil(float(col[valid].max())) + pad + 1, cols)
+    # row/col are NaN exactly where not valid: fmin/fmax skip them without a gather
+    r_lo, r_hi = float(np.fmin.reduce(row, axis=None)), float(np.fmax.reduce(row, axis=None))
+    c_lo, c_hi = float(np.fmin.reduce(col, axis=None)), float(np.fmax.reduce(col, axis=None))
+    if math.isfinite(r_lo) and math.isfinite(c_lo):
+        wr0 = max(math.floor(r_lo) - pad, 0)
+        wr1 = min(math.ceil(r_hi) + pad + 1, rows)
+        wc0 = max(math.floor(c_lo) - pad, 0)
+        wc1 = min(math.ceil(c_hi) + pad + 1, cols)
     else:
         wr0 = wr1 = wc0 = wc1 = 0
     if wr1 <= wr0 or wc1 <= wc0:
         return cast(np.full(out_shape, np.nan), np.zeros(out_shape[1:], bool), dtype, fill)
     src = image.read((wr0, wr1, wc0, wc1))
     # subtracting the window origin (an integer) is exact: values do not depend on it
-    values, ok = resample(src, row - wr0, col - wc0, kernel, nodata=image.nodata)
-    ok &= valid
-    return cast(values, ok, dtype, fill)
+    row -= wr0
+    col -= wc0
+    out, _ = resample_cast(src, row, col, kernel, dtype, fill, nodata=image.nodata)
+    return out
 
 
 def _coords(grid: Any, bands: int, fill: Any) -> dict:

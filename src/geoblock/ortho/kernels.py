@@ -53,7 +53,7 @@ try:  # numba is optional: the numpy reference is used without it
 except ImportError:  # pragma: no cover - exercised only without numba
     numba = None
 
-__all__ = ["KERNELS", "KERNEL_RADIUS", "SINC_HALF_WIDTH", "cast", "resample"]
+__all__ = ["KERNELS", "KERNEL_RADIUS", "SINC_HALF_WIDTH", "cast", "resample", "resample_cast"]
 
 KERNELS = ("nearest", "bilinear", "bicubic", "sinc")
 """The kernel names accepted by :func:`resample`."""
@@ -159,6 +159,57 @@ def cast(values: np.ndarray, valid: np.ndarray, dtype: Any, fill: float = 0) -> 
         raise ValueError(f"cast: fill {fill!r} is not representable in {dtype}")
     out[:, ~valid] = fill_value.astype(dtype)
     return out
+
+
+#: output dtypes :func:`resample_cast` converts inside the compiled kernels (others: two steps)
+_FUSED_DTYPES = frozenset(np.dtype(t) for t in ("uint8", "int8", "uint16", "int16", "uint32",
+                                                 "int32", "float32", "float64"))
+
+
+def resample_cast(
+    src: np.ndarray,
+    row: Any,
+    col: Any,
+    kernel: str,
+    dtype: Any,
+    fill: float = 0,
+    *,
+    nodata: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``cast(*resample(src, row, col, kernel, nodata=nodata), dtype, fill)`` in one pass.
+
+    The orthorectifier's path: the compiled kernels write the output dtype directly (no
+    float64 values array), with the same values as the two steps (tested).
+
+    Returns
+    -------
+    out : ndarray, (bands, *S) of ``dtype``
+    valid : ndarray, (*S,) bool
+    """
+    dtype = np.dtype(dtype)
+    if _nb_resample is None or dtype not in _FUSED_DTYPES:
+        values, valid = resample(src, row, col, kernel, nodata=nodata)
+        return cast(values, valid, dtype, fill), valid
+    src, row, col, shape, mask = _prepare(src, row, col, kernel, nodata)
+    is_int = dtype.kind in "iu"
+    if is_int:
+        info = np.iinfo(dtype)
+        lo, hi = float(info.min), float(info.max)
+        fill_value = float(fill)
+        if not (math.isfinite(fill_value) and lo <= fill_value <= hi):
+            raise ValueError(f"cast: fill {fill!r} is not representable in {dtype}")
+    else:
+        lo = hi = 0.0
+        fill_value = float(fill)
+    bands = src.shape[0]
+    out = np.empty((bands, row.size), dtype=dtype)
+    valid = np.empty(row.size, dtype=np.bool_)
+    use_mask = mask is not None
+    if not use_mask:
+        mask = np.zeros((0, 0), dtype=np.bool_)
+    _nb_resample(src, mask, use_mask, row, col, _KIND[kernel], out, valid, is_int, lo, hi,
+                 fill_value)
+    return out.reshape((bands,) + shape), valid.reshape(shape)
 
 
 # ---------------------------------------------------------------------- helpers
@@ -311,7 +362,8 @@ if numba is not None:
         return i0 - 7
 
     @numba.njit(nogil=True, cache=True)
-    def _nb_nearest(src, mask, use_mask, row, col, out, valid):  # pragma: no cover
+    def _nb_nearest(src, mask, use_mask, row, col, out, valid, is_int, lo, hi,
+                    fill):  # pragma: no cover
         bands, rows, cols = src.shape
         for p in range(row.shape[0]):
             r = row[p]
@@ -323,17 +375,19 @@ if numba is not None:
                 ok = 0 <= ri < rows and 0 <= ci < cols and not (use_mask and mask[ri, ci])
             if ok:
                 for b in range(bands):
-                    v = float(src[b, ri, ci])
-                    out[b, p] = v
-                    if not np.isfinite(v):
+                    if not np.isfinite(float(src[b, ri, ci])):
                         ok = False
+                if ok:
+                    for b in range(bands):
+                        out[b, p] = _store(float(src[b, ri, ci]), is_int, lo, hi)
             if not ok:
                 for b in range(bands):
-                    out[b, p] = np.nan
+                    out[b, p] = fill
             valid[p] = ok
 
     @numba.njit(nogil=True, cache=True)
-    def _nb_bilinear(src, mask, use_mask, row, col, out, valid):  # pragma: no cover
+    def _nb_bilinear(src, mask, use_mask, row, col, out, valid, is_int, lo, hi,
+                     fill):  # pragma: no cover
         bands, rows, cols = src.shape
         for p in range(row.shape[0]):
             r = row[p]
@@ -356,25 +410,41 @@ if numba is not None:
                     top = (1.0 - tc) * src[b, r0, c0] + tc * src[b, r0, c1]
                     bot = (1.0 - tc) * src[b, r1, c0] + tc * src[b, r1, c1]
                     v = (1.0 - tr) * top + tr * bot
-                    out[b, p] = v
                     if not np.isfinite(v):
                         ok = False
+                        break
+                    out[b, p] = _store(v, is_int, lo, hi)
             if not ok:
                 for b in range(bands):
-                    out[b, p] = np.nan
+                    out[b, p] = fill
             valid[p] = ok
 
-    def _nb_resample(src, mask, use_mask, row, col, kind, out, valid):  # pragma: no cover
-        """Dispatch in Python, so that numba compiles only the kernels used (per src dtype)."""
+    @numba.njit(inline="always")
+    def _store(v, is_int, lo, hi):  # pragma: no cover - compiled
+        """A finite value as :func:`cast` converts it: integers rounded half away from zero
+        and clipped to ``[lo, hi]``; floats as they are (the assignment converts)."""
+        if is_int:
+            r = math.ceil(v - 0.5) if v < 0 else math.floor(v + 0.5)
+            return min(max(r, lo), hi)
+        return v
+
+    def _nb_resample(src, mask, use_mask, row, col, kind, out, valid, is_int=False, lo=0.0,
+                     hi=0.0, fill=np.nan):  # pragma: no cover
+        """Dispatch in Python, so that numba compiles only the kernels used (per dtypes).
+
+        ``out`` (bands, N) of float64 (values, NaN where invalid) or of the output dtype
+        (values as :func:`cast` converts them, ``fill`` where invalid)."""
+        args = (out, valid, is_int, float(lo), float(hi), fill)
         if kind == 0:
-            _nb_nearest(src, mask, use_mask, row, col, out, valid)
+            _nb_nearest(src, mask, use_mask, row, col, *args)
         elif kind == 1:
-            _nb_bilinear(src, mask, use_mask, row, col, out, valid)
+            _nb_bilinear(src, mask, use_mask, row, col, *args)
         else:
-            _nb_separable(src, mask, use_mask, row, col, kind, 4 if kind == 2 else 16, out, valid)
+            _nb_separable(src, mask, use_mask, row, col, kind, 4 if kind == 2 else 16, *args)
 
     @numba.njit(nogil=True, cache=True)
-    def _nb_separable(src, mask, use_mask, row, col, kind, n, out, valid):  # pragma: no cover
+    def _nb_separable(src, mask, use_mask, row, col, kind, n, out, valid, is_int, lo, hi,
+                      fill):  # pragma: no cover
         """Bicubic and sinc: separable weights; only taps from the first to the last non-zero
         weight of each axis are read."""
         bands, rows, cols = src.shape
@@ -403,12 +473,13 @@ if numba is not None:
                         for j in range(jlo, jhi + 1):
                             line += wc[j] * src[b, r0 + i, c0 + j]
                         acc += wr[i] * line
-                    out[b, p] = acc
                     if not np.isfinite(acc):
                         ok = False
+                        break
+                    out[b, p] = _store(acc, is_int, lo, hi)
             if not ok:
                 for b in range(bands):
-                    out[b, p] = np.nan
+                    out[b, p] = fill
             valid[p] = ok
 
     @numba.njit(nogil=True, cache=True)

@@ -85,9 +85,23 @@ def _cell(p, s, inv, n):  # pragma: no cover - compiled
 
 @numba.njit(inline="always")
 def _lerp2(nodes, kr, kc, tr, tc):  # pragma: no cover - compiled
-    a = nodes[kr, kc] + tc * (nodes[kr, kc + 1] - nodes[kr, kc])
-    b = nodes[kr + 1, kc] + tc * (nodes[kr + 1, kc + 1] - nodes[kr + 1, kc])
-    return a + tr * (b - a)
+    """Bilinear in a cell: along rows first (as the row kernels precompute), then columns."""
+    a = nodes[kr, kc] + tr * (nodes[kr + 1, kc] - nodes[kr, kc])
+    b = nodes[kr, kc + 1] + tr * (nodes[kr + 1, kc + 1] - nodes[kr, kc + 1])
+    return a + tc * (b - a)
+
+
+@numba.njit(inline="always")
+def _quadratic_weights(hh, h0, dh, pairs):  # pragma: no cover - compiled
+    """First level ``2 k`` and Lagrange weights of height ``hh`` on levels ``h0 + k dh``."""
+    u = (hh - h0) / dh
+    k = int(math.floor(u * 0.5))
+    if k < 0:
+        k = 0
+    elif k > pairs - 1:
+        k = pairs - 1
+    t = u - 2.0 * k
+    return 2 * k, 0.5 * (t - 1.0) * (t - 2.0), -t * (t - 2.0), 0.5 * t * (t - 1.0)
 
 
 @numba.njit(inline="always")
@@ -96,54 +110,102 @@ def _image_point(rn, cn, hh, kr, kc, tr, tc, h0, dh, pairs):  # pragma: no cover
     levels ``h0 + k dh``; NaN for a NaN height."""
     if not np.isfinite(hh):
         return np.nan, np.nan
-    u = (hh - h0) / dh
-    k = int(math.floor(u * 0.5))
-    if k < 0:
-        k = 0
-    elif k > pairs - 1:
-        k = pairs - 1
-    t = u - 2.0 * k
-    w0 = 0.5 * (t - 1.0) * (t - 2.0)
-    w1 = -t * (t - 2.0)
-    w2 = 0.5 * t * (t - 1.0)
-    vr = 0.0
-    vc = 0.0
-    for m in range(3):
-        lev = 2 * k + m
-        w = w0 if m == 0 else (w1 if m == 1 else w2)
-        vr += w * _lerp2(rn[lev], kr, kc, tr, tc)
-        vc += w * _lerp2(cn[lev], kr, kc, tr, tc)
+    lev, w0, w1, w2 = _quadratic_weights(hh, h0, dh, pairs)
+    vr = w0 * _lerp2(rn[lev], kr, kc, tr, tc)
+    vc = w0 * _lerp2(cn[lev], kr, kc, tr, tc)
+    vr += w1 * _lerp2(rn[lev + 1], kr, kc, tr, tc)
+    vc += w1 * _lerp2(cn[lev + 1], kr, kc, tr, tc)
+    vr += w2 * _lerp2(rn[lev + 2], kr, kc, tr, tc)
+    vc += w2 * _lerp2(cn[lev + 2], kr, kc, tr, tc)
     return vr, vc
+
+
+@numba.njit(inline="always")
+def _row_lerp(nodes, kr, tr, out):  # pragma: no cover - compiled
+    """``out[..., kc]``: the nodes of rows ``kr, kr + 1`` interpolated at ``tr`` (the first
+    step of :func:`_lerp2`, shared by a whole output row)."""
+    for kc in range(nodes.shape[-1]):
+        out[kc] = nodes[kr, kc] + tr * (nodes[kr + 1, kc] - nodes[kr, kc])
+
+
+@numba.njit(nogil=True, cache=True)
+def _bilinear_into(nodes, r_off, c_off, s, out):  # pragma: no cover - compiled
+    """``out`` (nrows, ncols, any layout): bilinear interpolation of ``nodes`` (nr, nc) at
+    block pixels ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``); bit-identical
+    to :func:`_lerp2` per pixel."""
+    nrows, ncols = out.shape
+    inv = 1.0 / s
+    line = np.empty(nodes.shape[1])
+    for i in range(nrows):
+        kr, tr = _cell(r_off + i, s, inv, nodes.shape[0])
+        _row_lerp(nodes, kr, tr, line)
+        for j in range(ncols):
+            kc, tc = _cell(c_off + j, s, inv, nodes.shape[1])
+            a = line[kc]
+            out[i, j] = a + tc * (line[kc + 1] - a)
 
 
 @numba.njit(nogil=True, cache=True)
 def _bilinear(nodes, r_off, c_off, nrows, ncols, s):  # pragma: no cover - compiled
-    """(nrows, ncols) bilinear interpolation of ``nodes`` (nr, nc) at block pixels
-    ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``)."""
+    """:func:`_bilinear_into` a new (nrows, ncols) array."""
     out = np.empty((nrows, ncols))
-    inv = 1.0 / s
-    for i in range(nrows):
-        kr, tr = _cell(r_off + i, s, inv, nodes.shape[0])
-        for j in range(ncols):
-            kc, tc = _cell(c_off + j, s, inv, nodes.shape[1])
-            out[i, j] = _lerp2(nodes, kr, kc, tr, tc)
+    _bilinear_into(nodes, r_off, c_off, s, out)
     return out
 
 
 @numba.njit(nogil=True, cache=True)
-def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cover - compiled
-    """Image ``(row, col)`` (nrows, ncols) of block pixels from node values ``rn, cn``
-    (levels, nr, nc): bilinear in the nodes, quadratic in ``h`` between levels
-    ``h0 + k dh``; NaN where ``h`` is NaN."""
+def _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row,
+                       col):  # pragma: no cover - compiled
+    """Image ``row, col`` (nrows, ncols, any layout) of block pixels from node values
+    ``rn, cn`` (levels, nr, nc): bilinear in the nodes, quadratic in ``h`` between levels
+    ``h0 + k dh``; NaN where ``h`` is NaN. Bit-identical to :func:`_image_point` per pixel
+    (the row step of the bilinear interpolation is done once per output row). Returns the
+    number of pixels with a finite height but a non-finite result (a node outside the
+    model's domain)."""
     nrows, ncols = h.shape
-    row = np.empty((nrows, ncols))
-    col = np.empty((nrows, ncols))
+    nlev, nr, nc = rn.shape
     inv = 1.0 / s
+    lr = np.empty((nlev, nc))
+    lc = np.empty((nlev, nc))
+    miss = 0
     for i in range(nrows):
-        kr, tr = _cell(r_off + i, s, inv, rn.shape[1])
+        kr, tr = _cell(r_off + i, s, inv, nr)
+        for m in range(nlev):
+            _row_lerp(rn[m], kr, tr, lr[m])
+            _row_lerp(cn[m], kr, tr, lc[m])
         for j in range(ncols):
-            kc, tc = _cell(c_off + j, s, inv, rn.shape[2])
-            row[i, j], col[i, j] = _image_point(rn, cn, h[i, j], kr, kc, tr, tc, h0, dh, pairs)
+            hh = h[i, j]
+            if not np.isfinite(hh):
+                row[i, j] = np.nan
+                col[i, j] = np.nan
+                continue
+            kc, tc = _cell(c_off + j, s, inv, nc)
+            lev, w0, w1, w2 = _quadratic_weights(hh, h0, dh, pairs)
+            a = lr[lev, kc]
+            vr = w0 * (a + tc * (lr[lev, kc + 1] - a))
+            a = lc[lev, kc]
+            vc = w0 * (a + tc * (lc[lev, kc + 1] - a))
+            a = lr[lev + 1, kc]
+            vr += w1 * (a + tc * (lr[lev + 1, kc + 1] - a))
+            a = lc[lev + 1, kc]
+            vc += w1 * (a + tc * (lc[lev + 1, kc + 1] - a))
+            a = lr[lev + 2, kc]
+            vr += w2 * (a + tc * (lr[lev + 2, kc + 1] - a))
+            a = lc[lev + 2, kc]
+            vc += w2 * (a + tc * (lc[lev + 2, kc + 1] - a))
+            row[i, j] = vr
+            col[i, j] = vc
+            if not (np.isfinite(vr) and np.isfinite(vc)):
+                miss += 1
+    return miss
+
+
+@numba.njit(nogil=True, cache=True)
+def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cover - compiled
+    """:func:`_interp_image_into` new (nrows, ncols) arrays ``row, col``."""
+    row = np.empty(h.shape)
+    col = np.empty(h.shape)
+    _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row, col)
     return row, col
 
 
@@ -375,8 +437,8 @@ class _Block:
         lon_n, lat_n, _, _ = self.nodes  # type: ignore[misc]
         nr, nc = r_hi - r_lo, c_hi - c_lo
         sl = (slice(dst_r, dst_r + nr), slice(dst_c, dst_c + nc))
-        lon_w[sl] = _bilinear(lon_n, r_lo, c_lo, nr, nc, self.spacing)
-        lat_w[sl] = _bilinear(lat_n, r_lo, c_lo, nr, nc, self.spacing)
+        _bilinear_into(lon_n, r_lo, c_lo, self.spacing, lon_w[sl])
+        _bilinear_into(lat_n, r_lo, c_lo, self.spacing, lat_w[sl])
 
     def fill_lattice(self, out_r, out_c, h, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
         """:meth:`fill` for a lattice block whose pixels' DEM heights ``h`` (nr, nc) are
@@ -387,12 +449,10 @@ class _Block:
         s, pairs = self.spacing, self.pairs
         lev = self.levels(pairs)
         dh = (lev[-1] - lev[0]) / (lev.size - 1)
-        row, col = _interp_image(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs)
-        miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
-        if miss.any():  # the whole-block exact fallback, as fill does
+        if _interp_image_into(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs, out_r[sl],
+                              out_c[sl]):
+            # nodes outside the model's domain: the whole-block exact fallback, as fill does
             self.fill(out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c)
-            return
-        out_r[sl], out_c[sl] = row, col
 
     def fill(self, out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
         """Write the coordinates of block-local pixels ``[r_lo, r_hi) x [c_lo, c_hi)`` into
@@ -527,7 +587,9 @@ def source_coordinates(
                 dst_c = block.c0 + c - c0
                 h = np.ascontiguousarray(h_w[:, dst_c:dst_c + d - c])
                 block.fill_lattice(out_r, out_c, h, a, b, c, d, lo_r - r0, dst_c)
-    valid = np.isfinite(out_r) & np.isfinite(out_c)
-    out_r[~valid] = np.nan
-    out_c[~valid] = np.nan
+    valid = np.isfinite(out_r)
+    valid &= np.isfinite(out_c)
+    if not valid.all():
+        out_r[~valid] = np.nan
+        out_c[~valid] = np.nan
     return out_r, out_c, valid
