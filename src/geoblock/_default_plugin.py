@@ -35,6 +35,8 @@ def _looks_like_model_json(path: Path) -> dict | None:
 @hookimpl(tryfirst=True)
 def geoblock_read_sensor_model(path, model_name, options):
     """geoblock model JSON: a ``to_dict()`` object with ``model`` and ``schema_version``."""
+    if Path(path).is_dir():
+        return None
     data = _looks_like_model_json(path)
     if data is None:
         return None

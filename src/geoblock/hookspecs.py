@@ -74,7 +74,8 @@ def geoblock_read_sensor_model(
     Parameters
     ----------
     path : pathlib.Path
-        The file the user gave (it exists).
+        The file the user gave (it exists), or a product directory (a reader that reads only
+        files returns ``None`` for directories).
     model_name : str or None
         The model the user asked for, or ``None`` for "whatever fits".
     options : mapping

@@ -53,7 +53,8 @@ def test_unknown_file_names_file_plugins_and_models(tmp_path):
 def test_missing_file(tmp_path):
     with pytest.raises(GeoblockIOError, match="does not exist"):
         geoblock.open_model(tmp_path / "nothing.json")
-    with pytest.raises(GeoblockIOError, match="is a directory"):
+    # a directory is offered to the readers (product directories); none reads this one
+    with pytest.raises(UnsupportedFormatError, match="product directory"):
         geoblock.open_model(tmp_path)
 
 

@@ -24,7 +24,9 @@ def open_model(path: str | os.PathLike[str], model: str | None = None, **options
     Parameters
     ----------
     path : str or path-like
-        Vendor metadata (DIMAP, RPB, _RPC.TXT, GeoTIFF with RPC tags, ...) or model JSON.
+        Vendor metadata (DIMAP, RPB, _RPC.TXT, GeoTIFF with RPC tags, ...), a product
+        directory a plugin recognises (e.g. a SPOT scene holding ``METADATA.DIM``) or model
+        JSON.
     model : str, optional
         The registered model to build (``geoblock plugins`` lists them); by default the
         first reader that recognises the file decides.
@@ -38,7 +40,7 @@ def open_model(path: str | os.PathLike[str], model: str | None = None, **options
     Raises
     ------
     GeoblockIOError
-        ``path`` does not exist or is not a readable file.
+        ``path`` does not exist.
     UnknownModelError
         ``model`` is not a registered model name.
     UnsupportedFormatError
@@ -51,9 +53,8 @@ def open_model(path: str | os.PathLike[str], model: str | None = None, **options
     from geoblock.plugins import get_plugin_manager
 
     path = Path(path)
-    if not path.is_file():
-        what = "is a directory" if path.is_dir() else "does not exist"
-        raise GeoblockIOError(f"cannot open sensor model: {str(path)!r} {what}")
+    if not (path.is_file() or path.is_dir()):  # a directory: a product (e.g. SPOT DIMAP)
+        raise GeoblockIOError(f"cannot open sensor model: {str(path)!r} does not exist")
     registry = get_registry()
     if model is not None:
         registry.get(model)  # UnknownModelError listing the registered names
@@ -62,8 +63,9 @@ def open_model(path: str | os.PathLike[str], model: str | None = None, **options
     if result is None:
         consulted = [i.plugin_name for i in pm.hook.geoblock_read_sensor_model.get_hookimpls()]
         wanted = f" as model {model!r}" if model else ""
+        what = "product directory" if path.is_dir() else "file"
         raise UnsupportedFormatError(
-            f"{str(path)!r}: no geoblock plugin can read this file{wanted}. Readers consulted: "
+            f"{str(path)!r}: no geoblock plugin can read this {what}{wanted}. Readers consulted: "
             f"{', '.join(consulted) or '(none)'}; registered models: "
             f"{', '.join(registry.names()) or '(none)'}. Install the plugin for this sensor "
             "or check the file."

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import geoblock
 from geoblock.errors import GeoblockWarning, ModelFormatError
@@ -24,7 +25,7 @@ def geoblock_read_sensor_model(path, model_name, options):
     model than ``"rpc"`` is asked for. Options: ``crop_offset``, ``crop_from_geotransform``,
     ``image`` (see :mod:`geoblock_rpc.readers`).
     """
-    if model_name is not None and model_name != RpcModel.name:
+    if (model_name is not None and model_name != RpcModel.name) or Path(path).is_dir():
         return None
     from geoblock_rpc.readers import _read
 
