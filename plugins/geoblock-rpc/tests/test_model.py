@@ -228,3 +228,40 @@ class TestRefinedRpcContract(SensorModelContract):
         values = {0: [1.5, -0.7], 1: [1.5, 0.3, -0.2, -0.7, 0.1, 0.4],
                   2: [1.5, 0.3, -0.2, 0.05, -0.02, 0.03, -0.7, 0.1, 0.4, 0.01, 0.02, -0.03]}
         return geoblock.ImageCorrection(base, request.param, values[request.param], sigmas=1.0)
+
+
+def test_serial_and_parallel_kernels_agree_bit_for_bit():
+    """The thread-local twins run the same per-point code as the prange kernels."""
+    import threading
+
+    from geoblock_rpc import _kernels
+    from geoblock_rpc.model import PARALLEL_MIN_POINTS, parallel_ok
+
+    model = RpcModel.example()
+    rng = np.random.default_rng(3)
+    n = 5000
+    row = rng.uniform(-50, model.shape[0] + 50, n)
+    col = rng.uniform(-50, model.shape[1] + 50, n)
+    h = rng.uniform(-100, 3000, n)
+    row[:5] = np.nan
+    outs = []
+    for kernel in (_kernels.localise, _kernels.localise_serial):
+        lon, lat, st = np.empty(n), np.empty(n), np.empty(n, np.uint8)
+        kernel(row, col, h, model._prm, model._coef, 1e-8, 1e-7, 30, lon, lat, st)
+        outs.append((lon, lat, st))
+    for a, b in zip(*outs, strict=True):
+        assert a.tobytes() == b.tobytes()
+    lon, lat = outs[0][0], outs[0][1]
+    outs = []
+    for kernel in (_kernels.project, _kernels.project_serial):
+        r, c, st = np.empty(n), np.empty(n), np.empty(n, np.uint8)
+        kernel(lon, lat, h, model._prm, model._coef, r, c, st)
+        outs.append((r, c, st))
+    for a, b in zip(*outs, strict=True):
+        assert a.tobytes() == b.tobytes()
+    assert parallel_ok(PARALLEL_MIN_POINTS) and not parallel_ok(PARALLEL_MIN_POINTS - 1)
+    seen = []
+    worker = threading.Thread(target=lambda: seen.append(parallel_ok(10**7)))
+    worker.start()
+    worker.join()
+    assert seen == [False]

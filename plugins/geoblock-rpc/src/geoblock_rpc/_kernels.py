@@ -1,7 +1,10 @@
 """numba kernels of the RPC00B model: projection, localisation, partials.
 
 Each kernel loops over points in parallel (``prange``) and handles one point from input to
-status, so no temporary arrays are made. The vectorised numpy reference is
+status, so no temporary arrays are made. ``*_serial`` twins run the same per-point code on
+the calling thread: numba's thread pool costs a fixed launch per call and must not be entered
+from several threads at once, so small batches and calls from worker threads (dask tasks) use
+them (:func:`geoblock_rpc.model.parallel_ok`). The vectorised numpy reference is
 :mod:`geoblock_rpc.reference`; the tests check that both agree.
 
 Constants travel in one float64 array ``prm`` (see :func:`pack`) and the coefficients in a
@@ -13,7 +16,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-# contract (FMA) and reassociation only: NaN and inf must keep their meaning
+# contract (FMA) and reassociation only: NaN and inf must keep their meaning. Only the
+# partials use them: with them the prange and serial loops of projection and localisation
+# compile to different roundings, and results must not depend on the thread a batch runs on
+# (tested; measured cost: none for projection, ~12 % for localisation).
 _FASTMATH = {"contract", "reassoc", "nsz", "arcp"}
 
 # indices into prm
@@ -123,41 +129,40 @@ def _wrap_dlon(lon, long_off):
     return d - 360.0 * np.floor((d + 180.0) / 360.0)
 
 
-@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+@njit(inline="always")
+def _project_one(x, y, z, prm, coef):  # pragma: no cover - numba
+    """One point of :func:`project`: (row, col, status)."""
+    if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+        return np.nan, np.nan, INVALID_INPUT
+    L = _wrap_dlon(x, prm[LONG_OFF]) / prm[LONG_SCALE]
+    P = (y - prm[LAT_OFF]) / prm[LAT_SCALE]
+    H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+    if _outside(prm, x, y, L, P, H):
+        return np.nan, np.nan, OUT_OF_DOMAIN
+    ln, sn = _ratios(coef, L, P, H)
+    r = ln * prm[LINE_SCALE] + prm[LINE_OFF]
+    c = sn * prm[SAMP_SCALE] + prm[SAMP_OFF]
+    if np.isfinite(r) and np.isfinite(c):
+        return r, c, CONVERGED
+    return np.nan, np.nan, DIVERGED  # a zero denominator
+
+
+@njit(parallel=True, cache=True)
 def project(lon, lat, h, prm, coef, row, col, status):  # pragma: no cover - numba
     """Ground (degrees, metres) -> image (pixels) for every point; NaN and a status if not."""
     for i in prange(lon.shape[0]):
-        x = lon[i]
-        y = lat[i]
-        z = h[i]
-        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
-            row[i] = np.nan
-            col[i] = np.nan
-            status[i] = INVALID_INPUT
-            continue
-        L = _wrap_dlon(x, prm[LONG_OFF]) / prm[LONG_SCALE]
-        P = (y - prm[LAT_OFF]) / prm[LAT_SCALE]
-        H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
-        if _outside(prm, x, y, L, P, H):
-            row[i] = np.nan
-            col[i] = np.nan
-            status[i] = OUT_OF_DOMAIN
-            continue
-        ln, sn = _ratios(coef, L, P, H)
-        r = ln * prm[LINE_SCALE] + prm[LINE_OFF]
-        c = sn * prm[SAMP_SCALE] + prm[SAMP_OFF]
-        if np.isfinite(r) and np.isfinite(c):
-            row[i] = r
-            col[i] = c
-            status[i] = CONVERGED
-        else:  # a zero denominator
-            row[i] = np.nan
-            col[i] = np.nan
-            status[i] = DIVERGED
+        row[i], col[i], status[i] = _project_one(lon[i], lat[i], h[i], prm, coef)
 
 
-@njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, status):  # pragma: no cover
+@njit(cache=True)
+def project_serial(lon, lat, h, prm, coef, row, col, status):  # pragma: no cover - numba
+    """:func:`project` on the calling thread (small batches, calls from worker threads)."""
+    for i in range(lon.shape[0]):
+        row[i], col[i], status[i] = _project_one(lon[i], lat[i], h[i], prm, coef)
+
+
+@njit(inline="always")
+def _localise_one(r, c, z, prm, coef, tol_px, stall_px, max_iter):  # pragma: no cover
     """Image (pixels) at height h -> ground (degrees) by Newton in normalised (L, P).
 
     Start: the solution of the RPC's first-order terms. Steps are analytic Newton steps,
@@ -167,93 +172,98 @@ def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, statu
     """
     line_scale = prm[LINE_SCALE]
     samp_scale = prm[SAMP_SCALE]
-    for i in prange(row.shape[0]):
-        r = row[i]
-        c = col[i]
-        z = h[i]
-        lon[i] = np.nan
-        lat[i] = np.nan
-        if not (np.isfinite(r) and np.isfinite(c) and np.isfinite(z)):
-            status[i] = INVALID_INPUT
-            continue
-        ln = (r - prm[LINE_OFF]) / line_scale
-        sn = (c - prm[SAMP_OFF]) / samp_scale
-        H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
-        if abs(H) > prm[HEIGHT_LIMIT]:
-            status[i] = OUT_OF_DOMAIN
-            continue
-        # first-order start: (n1 - ln d1) L + (n2 - ln d2) P = ln (d0 + d3 H) - n0 - n3 H
-        a11 = coef[0, 1] - ln * coef[1, 1]
-        a12 = coef[0, 2] - ln * coef[1, 2]
-        b1 = ln * (coef[1, 0] + coef[1, 3] * H) - coef[0, 0] - coef[0, 3] * H
-        a21 = coef[2, 1] - sn * coef[3, 1]
-        a22 = coef[2, 2] - sn * coef[3, 2]
-        b2 = sn * (coef[3, 0] + coef[3, 3] * H) - coef[2, 0] - coef[2, 3] * H
-        det = a11 * a22 - a12 * a21
-        L = 0.0
-        P = 0.0
-        if abs(det) > 1e-12 * (abs(a11 * a22) + abs(a12 * a21)):
-            L = (b1 * a22 - b2 * a12) / det
-            P = (a11 * b2 - a21 * b1) / det
-            if not (abs(L) < 2.0 and abs(P) < 2.0):
-                L = 0.0
-                P = 0.0
-        st = MAX_ITERATIONS
-        best = np.inf
-        step_l = 0.0
-        step_p = 0.0
-        for _ in range(max_iter):
-            rl, j11, j12, _ = _ratio_derivatives(coef[0], coef[1], L, P, H)
-            rs, j21, j22, _ = _ratio_derivatives(coef[2], coef[3], L, P, H)
-            f_l = rl - ln
-            f_s = rs - sn
-            err = max(abs(f_l) * line_scale, abs(f_s) * samp_scale)
-            if not np.isfinite(err):
-                st = DIVERGED
-                break
-            if err <= tol_px:
+    if not (np.isfinite(r) and np.isfinite(c) and np.isfinite(z)):
+        return np.nan, np.nan, INVALID_INPUT
+    ln = (r - prm[LINE_OFF]) / line_scale
+    sn = (c - prm[SAMP_OFF]) / samp_scale
+    H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+    if abs(H) > prm[HEIGHT_LIMIT]:
+        return np.nan, np.nan, OUT_OF_DOMAIN
+    # first-order start: (n1 - ln d1) L + (n2 - ln d2) P = ln (d0 + d3 H) - n0 - n3 H
+    a11 = coef[0, 1] - ln * coef[1, 1]
+    a12 = coef[0, 2] - ln * coef[1, 2]
+    b1 = ln * (coef[1, 0] + coef[1, 3] * H) - coef[0, 0] - coef[0, 3] * H
+    a21 = coef[2, 1] - sn * coef[3, 1]
+    a22 = coef[2, 2] - sn * coef[3, 2]
+    b2 = sn * (coef[3, 0] + coef[3, 3] * H) - coef[2, 0] - coef[2, 3] * H
+    det = a11 * a22 - a12 * a21
+    L = 0.0
+    P = 0.0
+    if abs(det) > 1e-12 * (abs(a11 * a22) + abs(a12 * a21)):
+        L = (b1 * a22 - b2 * a12) / det
+        P = (a11 * b2 - a21 * b1) / det
+        if not (abs(L) < 2.0 and abs(P) < 2.0):
+            L = 0.0
+            P = 0.0
+    st = MAX_ITERATIONS
+    best = np.inf
+    step_l = 0.0
+    step_p = 0.0
+    for _ in range(max_iter):
+        rl, j11, j12, _ = _ratio_derivatives(coef[0], coef[1], L, P, H)
+        rs, j21, j22, _ = _ratio_derivatives(coef[2], coef[3], L, P, H)
+        f_l = rl - ln
+        f_s = rs - sn
+        err = max(abs(f_l) * line_scale, abs(f_s) * samp_scale)
+        if not np.isfinite(err):
+            st = DIVERGED
+            break
+        if err <= tol_px:
+            st = CONVERGED
+            break
+        if err >= best:
+            # no progress: float64's floor, or a step to halve
+            if best <= stall_px:
+                L += step_l  # undo the last step: the previous point was better
+                P += step_p
                 st = CONVERGED
                 break
-            if err >= best:
-                # no progress: float64's floor, or a step to halve
-                if best <= stall_px:
-                    L += step_l  # undo the last step: the previous point was better
-                    P += step_p
-                    st = CONVERGED
-                    break
-                step_l *= 0.5
-                step_p *= 0.5
-                L += step_l
-                P += step_p
-                continue
-            best = err
-            dj = j11 * j22 - j12 * j21
-            if dj == 0.0 or not np.isfinite(dj):
-                st = DIVERGED
-                break
-            step_l = (f_l * j22 - f_s * j12) / dj
-            step_p = (j11 * f_s - j21 * f_l) / dj
-            size = max(abs(step_l), abs(step_p))
-            if size > 0.5:
-                step_l *= 0.5 / size
-                step_p *= 0.5 / size
-            L -= step_l
-            P -= step_p
-            if abs(L) > 10.0 or abs(P) > 10.0:
-                st = DIVERGED
-                break
-        if st != CONVERGED:
-            status[i] = st
+            step_l *= 0.5
+            step_p *= 0.5
+            L += step_l
+            P += step_p
             continue
-        x = prm[LONG_OFF] + L * prm[LONG_SCALE]
-        x -= 360.0 * np.floor((x + 180.0) / 360.0)
-        y = prm[LAT_OFF] + P * prm[LAT_SCALE]
-        if _outside(prm, x, y, L, P, H):
-            status[i] = OUT_OF_DOMAIN
-            continue
-        lon[i] = x
-        lat[i] = y
-        status[i] = CONVERGED
+        best = err
+        dj = j11 * j22 - j12 * j21
+        if dj == 0.0 or not np.isfinite(dj):
+            st = DIVERGED
+            break
+        step_l = (f_l * j22 - f_s * j12) / dj
+        step_p = (j11 * f_s - j21 * f_l) / dj
+        size = max(abs(step_l), abs(step_p))
+        if size > 0.5:
+            step_l *= 0.5 / size
+            step_p *= 0.5 / size
+        L -= step_l
+        P -= step_p
+        if abs(L) > 10.0 or abs(P) > 10.0:
+            st = DIVERGED
+            break
+    if st != CONVERGED:
+        return np.nan, np.nan, st
+    x = prm[LONG_OFF] + L * prm[LONG_SCALE]
+    x -= 360.0 * np.floor((x + 180.0) / 360.0)
+    y = prm[LAT_OFF] + P * prm[LAT_SCALE]
+    if _outside(prm, x, y, L, P, H):
+        return np.nan, np.nan, OUT_OF_DOMAIN
+    return x, y, CONVERGED
+
+
+@njit(parallel=True, cache=True)
+def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, status):  # pragma: no cover
+    """Image (pixels) at height h -> ground (degrees), every point (:func:`_localise_one`)."""
+    for i in prange(row.shape[0]):
+        lon[i], lat[i], status[i] = _localise_one(row[i], col[i], h[i], prm, coef, tol_px,
+                                                  stall_px, max_iter)
+
+
+@njit(cache=True)
+def localise_serial(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat,
+                    status):  # pragma: no cover
+    """:func:`localise` on the calling thread (small batches, calls from worker threads)."""
+    for i in range(row.shape[0]):
+        lon[i], lat[i], status[i] = _localise_one(row[i], col[i], h[i], prm, coef, tol_px,
+                                                  stall_px, max_iter)
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)

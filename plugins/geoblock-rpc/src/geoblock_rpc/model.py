@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping
 from typing import Any, ClassVar, Self
 
@@ -15,6 +16,17 @@ from geoblock_rpc import _kernels
 from geoblock_rpc.rpc00b import Rpc00b
 
 __all__ = ["RpcModel"]
+
+
+#: batches smaller than this run on the calling thread (numba's pool has a launch cost)
+PARALLEL_MIN_POINTS = 32768
+
+
+def parallel_ok(n: int) -> bool:
+    """Whether a batch of ``n`` points uses the parallel kernels: large batches on the main
+    thread only. Worker threads (dask tasks) already run in parallel, and numba's default
+    thread pool must not be entered from several threads at once."""
+    return n >= PARALLEL_MIN_POINTS and threading.current_thread() is threading.main_thread()
 
 
 def _flat(*arrays: ArrayLike, names: tuple[str, ...]) -> tuple[tuple[int, ...], list[np.ndarray]]:
@@ -193,7 +205,8 @@ class RpcModel(SensorModelBase):
         row = np.empty(x.size)
         col = np.empty(x.size)
         status = np.empty(x.size, np.uint8)
-        _kernels.project(x, y, z, self._prm, self._coef, row, col, status)
+        kernel = _kernels.project if parallel_ok(x.size) else _kernels.project_serial
+        kernel(x, y, z, self._prm, self._coef, row, col, status)
         return ImageCoords(row.reshape(shape), col.reshape(shape)), status.reshape(shape)
 
     def backproject_with_status(self, row: ArrayLike, col: ArrayLike, h: ArrayLike):
@@ -207,9 +220,9 @@ class RpcModel(SensorModelBase):
         lon = np.empty(r.size)
         lat = np.empty(r.size)
         status = np.empty(r.size, np.uint8)
-        _kernels.localise(r, c, z, self._prm, self._coef, self.localisation_tolerance_px,
-                          self.localisation_stall_px, self.localisation_max_iterations,
-                          lon, lat, status)
+        kernel = _kernels.localise if parallel_ok(r.size) else _kernels.localise_serial
+        kernel(r, c, z, self._prm, self._coef, self.localisation_tolerance_px,
+               self.localisation_stall_px, self.localisation_max_iterations, lon, lat, status)
         h_out = np.where(status == 0, z, np.nan)
         return GroundCoords(lon.reshape(shape), lat.reshape(shape), h_out.reshape(shape)), status.reshape(shape)
 
