@@ -13,9 +13,11 @@ from geoblock.models.corrections import ImageCorrection
 
 @hookimpl
 def geoblock_register_sensor_models(register):
+    from geoblock.models.linescan import LinescanModel
     from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
     register(ImageCorrection)
+    register(LinescanModel)
     register(AffineCamera)
     register(ConstantVelocityPushbroom)
 

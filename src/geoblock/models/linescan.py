@@ -1,0 +1,1124 @@
+"""A generic state-vector pushbroom (line-scanner) model.
+
+A linear array of detectors images one row per exposure time while the satellite moves along
+its orbit. The model holds:
+
+* an :class:`Ephemeris`: time-tagged ECEF positions and velocities, interpolated by cubic
+  Hermite polynomials;
+* an :class:`Attitude`: time-tagged unit quaternions (sensor -> ECEF or sensor -> orbital
+  frame), interpolated by slerp;
+* :class:`LookDirections`: one unit look vector per detector (column) in the sensor frame;
+* :class:`LineTimes`: the exposure time of each row;
+
+and twelve adjustable parameters, bias and drift of the position (in the orbital frame) and of
+the attitude (small rotations about the sensor axes), the physical corrections of Teo et al.'s
+direct georeferencing and of Chen & Lee's bundle adjustment.
+
+Frames
+------
+* ECEF: EPSG:4978, metres.
+* Sensor (body) frame: +z the boresight (towards the ground), +x along track (the flight
+  direction at zero attitude), +y = z x x.
+* Orbital frame (LVLH, :func:`orbital_frame`): ``z_o = -P/|P|``, ``y_o = z_o x V / |.|``,
+  ``x_o = y_o x z_o``.
+
+Image -> ground intersects each line of sight with the surface of constant ellipsoidal height;
+ground -> image is a bracketed, safeguarded secant search on time for the instant the ground
+point lies in the detector plane (Chen & Lee eq. 5), vectorised over the points still active.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from geoblock import coords
+from geoblock.errors import ModelFormatError, SerializationError
+from geoblock.models.base import SensorModelBase
+from geoblock.models.parameters import ParameterSet
+from geoblock.typing import ArrayLike, Float64Array, Status
+
+__all__ = [
+    "PARAMETER_NAMES",
+    "PARAMETER_UNITS",
+    "Attitude",
+    "Ephemeris",
+    "LineTimes",
+    "LinescanModel",
+    "LookDirections",
+    "matrix_to_quaternion",
+    "orbital_frame",
+    "quaternion_to_matrix",
+    "rotation_xyz",
+]
+
+#: Names of the model's parameters, in order (see :class:`LinescanModel`).
+PARAMETER_NAMES: tuple[str, ...] = (
+    "dp_along", "dp_across", "dp_radial",
+    "dp_along_rate", "dp_across_rate", "dp_radial_rate",
+    "roll_bias", "pitch_bias", "yaw_bias",
+    "roll_rate", "pitch_rate", "yaw_rate",
+)
+#: Units of :data:`PARAMETER_NAMES`.
+PARAMETER_UNITS: tuple[str, ...] = ("m",) * 3 + ("m/s",) * 3 + ("rad",) * 3 + ("rad/s",) * 3
+
+_CONVERGED = np.uint8(Status.CONVERGED)
+_OUT = np.uint8(Status.OUT_OF_DOMAIN)
+
+
+# ==================================================================================== rotations
+def orbital_frame(position_m: ArrayLike, velocity_m_s: ArrayLike) -> Float64Array:
+    """The orbital (LVLH) frame of a satellite state.
+
+    Parameters
+    ----------
+    position_m : array_like, (..., 3)
+        ECEF position, metres.
+    velocity_m_s : array_like, (..., 3)
+        ECEF velocity, metres per second.
+
+    Returns
+    -------
+    ndarray, (..., 3, 3)
+        Columns ``x_o, y_o, z_o`` in ECEF: ``z_o = -P/|P|`` (towards the Earth's centre),
+        ``y_o = z_o x V / |z_o x V|``, ``x_o = y_o x z_o`` (about the flight direction). It maps
+        orbital-frame vectors to ECEF: ``v_ecef = M @ v_orb``.
+    """
+    p = np.asarray(position_m, dtype=np.float64)
+    v = np.asarray(velocity_m_s, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = -p / np.linalg.norm(p, axis=-1, keepdims=True)
+        y = np.cross(z, v)
+        y = y / np.linalg.norm(y, axis=-1, keepdims=True)
+    x = np.cross(y, z)
+    return np.stack([x, y, z], axis=-1)
+
+
+def quaternion_to_matrix(q: ArrayLike) -> Float64Array:
+    """Rotation matrices of quaternions ``(w, x, y, z)`` (Hamilton, active).
+
+    Parameters
+    ----------
+    q : array_like, (..., 4)
+        Quaternions, scalar first; normalised here.
+
+    Returns
+    -------
+    ndarray, (..., 3, 3)
+        ``R`` with ``v_target = R @ v_source``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    out = np.empty(q.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1.0 - 2.0 * (yy + zz)
+    out[..., 0, 1] = 2.0 * (xy - wz)
+    out[..., 0, 2] = 2.0 * (xz + wy)
+    out[..., 1, 0] = 2.0 * (xy + wz)
+    out[..., 1, 1] = 1.0 - 2.0 * (xx + zz)
+    out[..., 1, 2] = 2.0 * (yz - wx)
+    out[..., 2, 0] = 2.0 * (xz - wy)
+    out[..., 2, 1] = 2.0 * (yz + wx)
+    out[..., 2, 2] = 1.0 - 2.0 * (xx + yy)
+    return out
+
+
+def matrix_to_quaternion(r: ArrayLike) -> Float64Array:
+    """Unit quaternions ``(w, x, y, z)`` of rotation matrices (inverse of
+    :func:`quaternion_to_matrix`), with ``w >= 0``.
+
+    Parameters
+    ----------
+    r : array_like, (..., 3, 3)
+        Rotation matrices.
+
+    Returns
+    -------
+    ndarray, (..., 4)
+    """
+    r = np.asarray(r, dtype=np.float64)
+    m00, m11, m22 = r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]
+    # Shepperd: build from the largest of 4w^2, 4x^2, 4y^2, 4z^2 for numerical stability
+    cands = np.stack([
+        np.stack([1 + m00 + m11 + m22, r[..., 2, 1] - r[..., 1, 2],
+                  r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1),
+        np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + m00 - m11 - m22,
+                  r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0]], axis=-1),
+        np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0],
+                  1 - m00 + m11 - m22, r[..., 1, 2] + r[..., 2, 1]], axis=-1),
+        np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0],
+                  r[..., 1, 2] + r[..., 2, 1], 1 - m00 - m11 + m22], axis=-1),
+    ], axis=-2)  # (..., 4 candidates, 4 components); candidate k has 4 q_k^2 at index k
+    diag = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22,
+                     1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=-1)
+    k = np.argmax(diag, axis=-1)
+    q = np.take_along_axis(cands, k[..., None, None], axis=-2)[..., 0, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def rotation_xyz(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> Float64Array:
+    """``Rx(roll) @ Ry(pitch) @ Rz(yaw)``, angles in radians, (..., 3, 3)."""
+    a, b, c = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (roll, pitch, yaw)))
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    out = np.empty(a.shape + (3, 3))
+    # Rx @ Ry @ Rz written out
+    out[..., 0, 0] = cb * cc
+    out[..., 0, 1] = -cb * sc
+    out[..., 0, 2] = sb
+    out[..., 1, 0] = sa * sb * cc + ca * sc
+    out[..., 1, 1] = -sa * sb * sc + ca * cc
+    out[..., 1, 2] = -sa * cb
+    out[..., 2, 0] = -ca * sb * cc + sa * sc
+    out[..., 2, 1] = ca * sb * sc + sa * cc
+    out[..., 2, 2] = ca * cb
+    return out
+
+
+# ==================================================================================== helpers
+def _fail(where: str, message: str) -> ModelFormatError:
+    return ModelFormatError(f"{where}: {message}")
+
+
+def _array(value: Any, where: str, shape_tail: tuple[int, ...], min_len: int) -> np.ndarray:
+    """A read-only float64 copy of ``value`` of shape ``(n, *shape_tail)``, finite, n >= min_len."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise _fail(where, f"must be numeric ({exc})") from None
+    if a.ndim != 1 + len(shape_tail) or a.shape[1:] != shape_tail:
+        want = "(n" + "".join(f", {k}" for k in shape_tail) + ")"
+        raise _fail(where, f"must have shape {want}, got {a.shape}")
+    if a.shape[0] < min_len:
+        raise _fail(where, f"needs at least {min_len} samples, got {a.shape[0]}")
+    if not np.all(np.isfinite(a)):
+        i = int(np.flatnonzero(~np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1))[0])
+        raise _fail(where, f"has non-finite values (sample {i})")
+    a.flags.writeable = False
+    return a
+
+
+def _increasing(t: np.ndarray, where: str) -> None:
+    dt = np.diff(t)
+    if np.any(~(dt > 0)):
+        i = int(np.flatnonzero(~(dt > 0))[0])
+        raise _fail(where, f"must be strictly increasing (time_s[{i + 1}] = {t[i + 1]!r} <= "
+                           f"time_s[{i}] = {t[i]!r})")
+
+
+def _segment(times: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Interval index i (clipped to the end intervals), fraction s and its width, for times t."""
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
+    width = times[i + 1] - times[i]
+    return i, (t - times[i]) / width, width
+
+
+# ==================================================================================== ephemeris
+@dataclass(frozen=True, eq=False)
+class Ephemeris:
+    """Time-tagged satellite positions and velocities (ECEF), Hermite-interpolated.
+
+    Parameters
+    ----------
+    time_s : array_like, (n,)
+        Strictly increasing, seconds since the model's epoch; n >= 2.
+    position_m : array_like, (n, 3)
+        ECEF positions, metres.
+    velocity_m_s : array_like, (n, 3)
+        ECEF (Earth-fixed) velocities, metres per second.
+    """
+
+    time_s: np.ndarray
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    _coefficients: np.ndarray = field(init=False, repr=False)
+    _inv_width: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        t = _array(self.time_s, "Ephemeris.time_s", (), 2)
+        n = t.shape[0]
+        p = _array(self.position_m, "Ephemeris.position_m", (3,), 2)
+        v = _array(self.velocity_m_s, "Ephemeris.velocity_m_s", (3,), 2)
+        for name, a in (("position_m", p), ("velocity_m_s", v)):
+            if a.shape[0] != n:
+                raise _fail(f"Ephemeris.{name}", f"has {a.shape[0]} samples, time_s has {n}")
+        _increasing(t, "Ephemeris.time_s")
+        object.__setattr__(self, "time_s", t)
+        object.__setattr__(self, "position_m", p)
+        object.__setattr__(self, "velocity_m_s", v)
+        # Hermite polynomial of each interval in s = (t - t_i) / h: P = c0 + c1 s + c2 s^2 + c3 s^3
+        h = np.diff(t)[:, None]
+        p0, p1, v0, v1 = p[:-1], p[1:], v[:-1] * h, v[1:] * h
+        coefficients = np.stack(
+            [p0, v0, 3.0 * (p1 - p0) - 2.0 * v0 - v1, 2.0 * (p0 - p1) + v0 + v1], axis=1)
+        object.__setattr__(self, "_coefficients", coefficients)
+        object.__setattr__(self, "_inv_width", 1.0 / h[:, 0])
+
+    @property
+    def valid_span_s(self) -> tuple[float, float]:
+        """``(t_min, t_max)``: where :meth:`at` is finite (the samples plus one interval)."""
+        t = self.time_s
+        return float(t[0] - (t[1] - t[0])), float(t[-1] + (t[-1] - t[-2]))
+
+    def at(self, t_s: ArrayLike) -> tuple[Float64Array, Float64Array]:
+        """Position and velocity at times ``t_s`` by cubic Hermite interpolation.
+
+        Parameters
+        ----------
+        t_s : array_like, (...)
+            Seconds since the epoch.
+
+        Returns
+        -------
+        position_m, velocity_m_s : ndarray, (..., 3)
+            ECEF. Exact at the samples, C1 between them; extrapolated by the end
+            polynomials up to one sample interval beyond the ends, NaN farther.
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        shape = t.shape
+        t = t.ravel()
+        i, s, _ = _segment(self.time_s, t)
+        c = self._coefficients[i]  # (N, 4, 3)
+        s_ = s[:, None]
+        pos = c[:, 0] + s_ * (c[:, 1] + s_ * (c[:, 2] + s_ * c[:, 3]))
+        vel = (c[:, 1] + s_ * (2.0 * c[:, 2] + 3.0 * s_ * c[:, 3])) * self._inv_width[i, None]
+        lo, hi = self.valid_span_s
+        bad = ~((t >= lo) & (t <= hi))
+        pos[bad] = np.nan
+        vel[bad] = np.nan
+        return pos.reshape(shape + (3,)), vel.reshape(shape + (3,))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary."""
+        return {"time_s": self.time_s.tolist(), "position_m": self.position_m.tolist(),
+                "velocity_m_s": self.velocity_m_s.tolist()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Ephemeris:
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["time_s"], data["position_m"], data["velocity_m_s"])
+
+
+# ==================================================================================== attitude
+@dataclass(frozen=True, eq=False)
+class Attitude:
+    """Time-tagged attitude quaternions, slerp-interpolated.
+
+    Parameters
+    ----------
+    time_s : array_like, (m,)
+        Strictly increasing, seconds since the epoch; m >= 1 (1: constant attitude).
+    quaternion : array_like, (m, 4)
+        ``(w, x, y, z)`` unit quaternions: ``v_frame = R(q) @ v_sensor``.
+    frame : {"ecef", "orbital"}
+        The frame the quaternions rotate sensor vectors into (``"orbital"``: the frame of
+        :func:`orbital_frame` at the same time).
+    """
+
+    time_s: np.ndarray
+    quaternion: np.ndarray
+    frame: str = "ecef"
+    _unit: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        t = _array(self.time_s, "Attitude.time_s", (), 1)
+        q = _array(self.quaternion, "Attitude.quaternion", (4,), 1)
+        if q.shape[0] != t.shape[0]:
+            raise _fail("Attitude.quaternion", f"has {q.shape[0]} samples, time_s has {t.shape[0]}")
+        _increasing(t, "Attitude.time_s")
+        norm = np.linalg.norm(q, axis=1)
+        if np.any(~(np.abs(norm - 1.0) < 1e-3)):
+            i = int(np.flatnonzero(~(np.abs(norm - 1.0) < 1e-3))[0])
+            raise _fail("Attitude.quaternion", f"sample {i} is not a unit quaternion (norm "
+                                               f"{norm[i]!r})")
+        if self.frame not in ("ecef", "orbital"):
+            raise _fail("Attitude.frame", f"must be 'ecef' or 'orbital', got {self.frame!r}")
+        unit = q / norm[:, None]
+        # sign-align consecutive samples so that slerp takes the short way
+        flips = np.concatenate([[1.0], np.sign(np.sum(unit[1:] * unit[:-1], axis=1))])
+        flips[flips == 0] = 1.0
+        unit = unit * np.cumprod(flips)[:, None]
+        object.__setattr__(self, "time_s", t)
+        object.__setattr__(self, "quaternion", q)
+        object.__setattr__(self, "_unit", unit)
+
+    @property
+    def valid_span_s(self) -> tuple[float, float]:
+        """``(t_min, t_max)`` where :meth:`matrix` is finite (unbounded for one sample)."""
+        t = self.time_s
+        if t.size == 1:
+            return -np.inf, np.inf
+        return float(t[0] - (t[1] - t[0])), float(t[-1] + (t[-1] - t[-2]))
+
+    def quaternion_at(self, t_s: ArrayLike) -> Float64Array:
+        """Interpolated unit quaternions (..., 4) at ``t_s`` (slerp; NaN outside the span)."""
+        t = np.asarray(t_s, dtype=np.float64)
+        shape = t.shape
+        t = t.ravel()
+        if self.time_s.size == 1:
+            q = np.broadcast_to(self._unit[0], (t.size, 4)).copy()
+        else:
+            i, s, _ = _segment(self.time_s, t)
+            s = np.clip(s, 0.0, 1.0)  # hold the end values
+            q0, q1 = self._unit[i], self._unit[i + 1]
+            cos = np.clip(np.sum(q0 * q1, axis=1), -1.0, 1.0)
+            theta = np.arccos(cos)
+            small = theta < 1e-6
+            sin = np.where(small, 1.0, np.sin(theta))
+            w0 = np.where(small, 1.0 - s, np.sin((1.0 - s) * theta) / sin)
+            w1 = np.where(small, s, np.sin(s * theta) / sin)
+            q = w0[:, None] * q0 + w1[:, None] * q1
+            q /= np.linalg.norm(q, axis=1, keepdims=True)
+        lo, hi = self.valid_span_s
+        q[~((t >= lo) & (t <= hi))] = np.nan
+        return q.reshape(shape + (4,))
+
+    def matrix(self, t_s: ArrayLike) -> Float64Array:
+        """Sensor -> ``frame`` rotation matrices (..., 3, 3) at ``t_s`` (slerp between samples).
+
+        Held constant up to one sample interval beyond the ends, NaN farther.
+        """
+        return quaternion_to_matrix(self.quaternion_at(t_s))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary."""
+        return {"time_s": self.time_s.tolist(), "quaternion": self.quaternion.tolist(),
+                "frame": self.frame}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Attitude:
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["time_s"], data["quaternion"], data.get("frame", "ecef"))
+
+
+# ==================================================================================== detectors
+@dataclass(frozen=True, eq=False)
+class LookDirections:
+    """One look vector per detector (image column) in the sensor frame.
+
+    Parameters
+    ----------
+    vectors : array_like, (cols, 3)
+        Look vectors in the sensor frame (+z boresight, +x along track, +y across), one per
+        column, cols >= 2; normalised here if they are not unit vectors. The across-track
+        tangents ``v_y / v_z`` must be strictly monotonic and ``v_z > 0``.
+
+    Notes
+    -----
+    Between detectors the look vector is the linear interpolation of the two neighbours'
+    vectors, normalised; beyond the ends, the end segments extend linearly.
+    """
+
+    vectors: np.ndarray
+    _tan_y: np.ndarray = field(init=False, repr=False)
+    _ascending: bool = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        v = np.array(_array(self.vectors, "LookDirections.vectors", (3,), 2))
+        norm = np.linalg.norm(v, axis=1)
+        if np.any(~(np.abs(norm - 1.0) <= 1e-12)):
+            if np.any(~(norm > 0)):
+                raise _fail("LookDirections.vectors", "has zero vectors")
+            v = v / norm[:, None]
+        if np.any(~(v[:, 2] > 0)):
+            i = int(np.flatnonzero(~(v[:, 2] > 0))[0])
+            raise _fail("LookDirections.vectors",
+                        f"detector {i} does not look down the boresight (z = {v[i, 2]!r} <= 0)")
+        tan_y = v[:, 1] / v[:, 2]
+        d = np.diff(tan_y)
+        if not (np.all(d > 0) or np.all(d < 0)):
+            raise _fail("LookDirections.vectors",
+                        "the across-track tangents v_y / v_z must be strictly monotonic in col")
+        v.flags.writeable = False
+        object.__setattr__(self, "vectors", v)
+        object.__setattr__(self, "_ascending", bool(d[0] > 0))
+        object.__setattr__(self, "_tan_y", tan_y if d[0] > 0 else -tan_y)
+
+    @classmethod
+    def from_tan_angles(cls, tan_x: ArrayLike, tan_y: ArrayLike) -> LookDirections:
+        """Look vectors ``(tan_x, tan_y, 1)`` normalised, from focal-plane tangents (cols,)."""
+        tx, ty = np.broadcast_arrays(np.asarray(tan_x, np.float64), np.asarray(tan_y, np.float64))
+        v = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
+        return cls(v / np.linalg.norm(v, axis=-1, keepdims=True))
+
+    @property
+    def cols(self) -> int:
+        """Number of detectors."""
+        return int(self.vectors.shape[0])
+
+    def at(self, col: ArrayLike) -> Float64Array:
+        """Unit look vectors (..., 3) at columns ``col`` (0-based pixel centres)."""
+        c = np.asarray(col, dtype=np.float64)
+        i = np.clip(np.floor(c), 0, self.cols - 2)
+        i = np.where(np.isfinite(i), i, 0).astype(np.intp)
+        a = (c - i)[..., None]
+        v = (1.0 - a) * self.vectors[i] + a * self.vectors[i + 1]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+    def _invert(self, ratio_y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Column whose look vector has ``v_y / v_z == ratio_y``; its ``v_x / v_z`` and
+        ``d(v_x/v_z)/dcol``, ``d(v_y/v_z)/dcol``. Exact inverse of :meth:`at`."""
+        key = ratio_y if self._ascending else -ratio_y
+        i = np.clip(np.searchsorted(self._tan_y, key) - 1, 0, self.cols - 2)
+        v0, v1 = self.vectors[i], self.vectors[i + 1]
+        dv = v1 - v0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = (v0[:, 1] - ratio_y * v0[:, 2]) / (ratio_y * dv[:, 2] - dv[:, 1])
+            vz = v0[:, 2] + a * dv[:, 2]
+            vx = v0[:, 0] + a * dv[:, 0]
+            tx = vx / vz
+            dtx = (dv[:, 0] * v0[:, 2] - v0[:, 0] * dv[:, 2]) / (vz * vz)
+            dty = (dv[:, 1] * v0[:, 2] - v0[:, 1] * dv[:, 2]) / (vz * vz)
+        return i + a, tx, np.stack([dtx, dty], axis=-1)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary."""
+        return {"vectors": self.vectors.tolist()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> LookDirections:
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["vectors"])
+
+
+# ==================================================================================== line times
+@dataclass(frozen=True)
+class LineTimes:
+    """Exposure time of each row: a constant line period.
+
+    Parameters
+    ----------
+    reference_row : float
+        Row (0-based pixel centre) exposed at ``reference_time_s``.
+    reference_time_s : float
+        Seconds since the epoch.
+    line_period_s : float
+        Seconds per row, > 0.
+    """
+
+    reference_row: float
+    reference_time_s: float
+    line_period_s: float
+
+    def __post_init__(self) -> None:
+        for name in ("reference_row", "reference_time_s", "line_period_s"):
+            try:
+                value = float(getattr(self, name))
+            except (TypeError, ValueError):
+                raise _fail(f"LineTimes.{name}", f"must be a number, got "
+                                                 f"{getattr(self, name)!r}") from None
+            if not np.isfinite(value):
+                raise _fail(f"LineTimes.{name}", f"must be finite, got {value!r}")
+            object.__setattr__(self, name, value)
+        if not self.line_period_s > 0:
+            raise _fail("LineTimes.line_period_s", f"must be > 0, got {self.line_period_s!r}")
+
+    def time(self, row: ArrayLike) -> Float64Array:
+        """Seconds since the epoch at which ``row`` is exposed."""
+        return self.reference_time_s + (np.asarray(row, np.float64) - self.reference_row) * (
+            self.line_period_s)
+
+    def row(self, t_s: ArrayLike) -> Float64Array:
+        """Row exposed at ``t_s`` seconds since the epoch (inverse of :meth:`time`)."""
+        return self.reference_row + (np.asarray(t_s, np.float64) - self.reference_time_s) / (
+            self.line_period_s)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary."""
+        return {"reference_row": self.reference_row, "reference_time_s": self.reference_time_s,
+                "line_period_s": self.line_period_s}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> LineTimes:
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["reference_row"], data["reference_time_s"], data["line_period_s"])
+
+
+# ==================================================================================== the model
+class LinescanModel(SensorModelBase):
+    """A pushbroom sensor from ephemeris, attitude, detector look directions and line times.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        ``(rows, cols)``; ``cols`` must equal the number of look directions.
+    ephemeris : Ephemeris
+    attitude : Attitude
+    look : LookDirections
+    line_times : LineTimes
+    epoch : str
+        ISO-8601 UTC time all times are relative to (informational).
+    height_range : (float, float)
+        Valid heights, metres above the ellipsoid.
+    parameters : ParameterSet, optional
+        Values (and sigmas, adjustable mask) of some or all of :data:`PARAMETER_NAMES`
+        (missing ones are 0 and fixed out of the set); default all twelve, zero, free.
+
+    Notes
+    -----
+    With ``dt = t - line_times.reference_time_s`` the corrected state at time ``t`` is
+
+    * ``P'(t) = P(t) + M_orb(t) @ [a, c, -r]`` with ``a = dp_along + dp_along_rate dt``,
+      ``c = dp_across + dp_across_rate dt``, ``r = dp_radial + dp_radial_rate dt``;
+    * ``R'(t) = R(t) @ Rx(roll) @ Ry(pitch) @ Rz(yaw)``, each angle ``bias + rate * dt``,
+      ``R(t)`` sensor -> ECEF (``M_orb(t) @ R_att(t)`` for an orbital-frame attitude).
+
+    Image -> ground intersects ``P' + s R' look(col)`` with the surface of height ``h``;
+    ground -> image searches the time at which the ground point is in the detector plane.
+    """
+
+    name: ClassVar[str] = "linescan"
+    schema_version: ClassVar[int] = 1
+
+    #: ray/height-surface intersection: tolerance (metres of height) and iteration cap
+    intersection_tolerance_m: ClassVar[float] = 1e-7
+    intersection_max_iterations: ClassVar[int] = 10
+    #: time search: tolerance (fraction of a line period) and iteration cap
+    search_tolerance_lines: ClassVar[float] = 1e-9
+    search_max_iterations: ClassVar[int] = 60
+    #: a step below this many lines that does not reduce the residual ends the search
+    search_stall_lines: ClassVar[float] = 1e-7
+    #: points processed at once by the kernels (bounds the memory of large calls)
+    chunk_points: ClassVar[int] = 65536
+    #: the time search covers the image rows plus a margin on each side, the larger of this
+    #: fraction of the image's duration and ``search_margin_s`` seconds (limited to the
+    #: ephemeris and attitude spans); ground points imaged outside it are OUT_OF_DOMAIN
+    search_margin_fraction: ClassVar[float] = 0.5
+    search_margin_s: ClassVar[float] = 1.0
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        ephemeris: Ephemeris,
+        attitude: Attitude,
+        look: LookDirections,
+        line_times: LineTimes,
+        *,
+        epoch: str = "",
+        height_range: tuple[float, float] = (-500.0, 9000.0),
+        parameters: ParameterSet | None = None,
+    ) -> None:
+        try:
+            rows, cols = (int(v) for v in shape)
+        except (TypeError, ValueError):
+            raise _fail("LinescanModel.shape", f"must be (rows, cols), got {shape!r}") from None
+        if rows < 1 or cols < 2:
+            raise _fail("LinescanModel.shape", f"must be >= (1, 2), got {(rows, cols)}")
+        for name, value, kind in (("ephemeris", ephemeris, Ephemeris),
+                                  ("attitude", attitude, Attitude),
+                                  ("look", look, LookDirections),
+                                  ("line_times", line_times, LineTimes)):
+            if not isinstance(value, kind):
+                raise _fail(f"LinescanModel.{name}",
+                            f"must be a {kind.__name__}, got {type(value).__name__}")
+        if look.cols != cols:
+            raise _fail("LinescanModel.look", f"look-direction table has {look.cols} detectors, "
+                                              f"the image has {cols} columns")
+        h0, h1 = (float(v) for v in height_range)
+        if not (np.isfinite(h0) and np.isfinite(h1) and h0 < h1):
+            raise _fail("LinescanModel.height_range", f"must be finite with h_min < h_max, got "
+                                                      f"{(h0, h1)}")
+        if parameters is None:
+            parameters = ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS)
+        if not isinstance(parameters, ParameterSet):
+            raise _fail("LinescanModel.parameters",
+                        f"must be a ParameterSet, got {type(parameters).__name__}")
+        unknown = [n for n in parameters.names if n not in PARAMETER_NAMES]
+        if unknown:
+            raise _fail("LinescanModel.parameters",
+                        f"unknown parameter names {unknown}; known: {list(PARAMETER_NAMES)}")
+        if not np.all(np.isfinite(parameters.values)):
+            raise _fail("LinescanModel.parameters", "values must be finite")
+        self._shape = (rows, cols)
+        self._ephemeris = ephemeris
+        self._attitude = attitude
+        self._look = look
+        self._line_times = line_times
+        self._epoch = str(epoch)
+        self._height_range = (h0, h1)
+        self._parameters = parameters
+        full = np.zeros(12)
+        self._index = np.array([PARAMETER_NAMES.index(n) for n in parameters.names], dtype=np.intp)
+        full[self._index] = parameters.values
+        self._full = full  # the 12 values in PARAMETER_NAMES order
+        self._span = self._search_span()
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._shape
+
+    @property
+    def height_range(self) -> tuple[float, float]:
+        return self._height_range
+
+    @property
+    def parameters(self) -> ParameterSet:
+        return self._parameters
+
+    @property
+    def ephemeris(self) -> Ephemeris:
+        """The satellite's ephemeris (uncorrected)."""
+        return self._ephemeris
+
+    @property
+    def attitude(self) -> Attitude:
+        """The sensor's attitude (uncorrected)."""
+        return self._attitude
+
+    @property
+    def look(self) -> LookDirections:
+        """The detectors' look directions."""
+        return self._look
+
+    @property
+    def line_times(self) -> LineTimes:
+        """Row exposure times."""
+        return self._line_times
+
+    @property
+    def epoch(self) -> str:
+        """ISO-8601 UTC epoch of all times (informational)."""
+        return self._epoch
+
+    def with_parameters(self, values: ArrayLike | Mapping[str, float]) -> Self:
+        return type(self)(self._shape, self._ephemeris, self._attitude, self._look,
+                          self._line_times, epoch=self._epoch, height_range=self._height_range,
+                          parameters=self._parameters.with_values(values))
+
+    def replace(self, **changes: Any) -> Self:
+        """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``)."""
+        args = {"shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
+                "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
+                "height_range": self._height_range, "parameters": self._parameters}
+        unknown = set(changes) - set(args)
+        if unknown:
+            raise TypeError(f"replace: unknown fields {sorted(unknown)}")
+        args.update(changes)
+        shape = args.pop("shape")
+        eph, att, look, lt = (args.pop(k) for k in ("ephemeris", "attitude", "look", "line_times"))
+        return type(self)(shape, eph, att, look, lt, **args)
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": self.name,
+            "schema_version": self.schema_version,
+            "shape": list(self._shape),
+            "epoch": self._epoch,
+            "height_range": list(self._height_range),
+            "ephemeris": self._ephemeris.to_dict(),
+            "attitude": self._attitude.to_dict(),
+            "look": self._look.to_dict(),
+            "line_times": self._line_times.to_dict(),
+            "parameters": self._parameters.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Self:
+        try:
+            if data.get("model", cls.name) != cls.name:
+                raise SerializationError(f"not a {cls.name} model: model={data.get('model')!r}")
+            version = data.get("schema_version", cls.schema_version)
+            if version != cls.schema_version:
+                raise SerializationError(f"{cls.name}: unsupported schema_version {version!r} "
+                                         f"(this geoblock reads {cls.schema_version})")
+            return cls(
+                tuple(data["shape"]),
+                Ephemeris.from_dict(data["ephemeris"]),
+                Attitude.from_dict(data["attitude"]),
+                LookDirections.from_dict(data["look"]),
+                LineTimes.from_dict(data["line_times"]),
+                epoch=data.get("epoch", ""),
+                height_range=tuple(data.get("height_range", (-500.0, 9000.0))),
+                parameters=ParameterSet.from_dict(data["parameters"])
+                if "parameters" in data else None,
+            )
+        except KeyError as exc:
+            raise SerializationError(f"{cls.name}: missing field {exc}") from exc
+        except ModelFormatError as exc:
+            raise SerializationError(f"{cls.name}: {exc}") from exc
+        except (TypeError, ValueError, AttributeError) as exc:
+            if isinstance(exc, SerializationError):
+                raise
+            raise SerializationError(f"{cls.name}: invalid model dictionary: {exc}") from exc
+
+    # ------------------------------------------------------------------ state
+    def _params_at(self, dt: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(N, 3) position offsets [a, c, -r] in the orbital frame and (N, 3) angles, or None."""
+        p = self._full
+        offsets = angles = None
+        if np.any(p[0:6]):
+            offsets = p[0:3] + dt[:, None] * p[3:6]
+            offsets[:, 2] *= -1.0
+        if np.any(p[6:12]):
+            angles = p[6:9] + dt[:, None] * p[9:12]
+        return offsets, angles
+
+    def _state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Corrected state at flat times t: P' (N,3), V (N,3), R' (N,3,3), M_orb (N,3,3)."""
+        pos, vel = self._ephemeris.at(t)
+        m_orb = orbital_frame(pos, vel)
+        rot = self._attitude.matrix(t)
+        if self._attitude.frame == "orbital":
+            rot = m_orb @ rot
+        offsets, angles = self._params_at(t - self._line_times.reference_time_s)
+        if offsets is not None:
+            pos = pos + np.einsum("nij,nj->ni", m_orb, offsets)
+        if angles is not None:
+            rot = rot @ rotation_xyz(angles[:, 0], angles[:, 1], angles[:, 2])
+        return pos, vel, rot, m_orb
+
+    def sensor_state(self, row: ArrayLike) -> tuple[Float64Array, Float64Array, Float64Array]:
+        """The corrected (parameters applied) sensor state when ``row`` is exposed.
+
+        Parameters
+        ----------
+        row : array_like, (...)
+            Rows, pixels.
+
+        Returns
+        -------
+        position_m : ndarray, (..., 3)
+            Corrected ECEF position ``P'``, metres.
+        velocity_m_s : ndarray, (..., 3)
+            ECEF velocity from the ephemeris plus the position drift rates rotated to ECEF,
+            metres per second.
+        rotation : ndarray, (..., 3, 3)
+            Corrected sensor -> ECEF rotation ``R'``.
+        """
+        r = np.asarray(row, dtype=np.float64)
+        t = self._line_times.time(r).ravel()
+        pos, vel, rot, m_orb = self._state(t)
+        rates = self._full[3:6] * np.array([1.0, 1.0, -1.0])
+        if np.any(rates):
+            vel = vel + m_orb @ rates
+        return pos.reshape(r.shape + (3,)), vel.reshape(r.shape + (3,)), rot.reshape(
+            r.shape + (3, 3))
+
+    def _search_span(self) -> tuple[float, float]:
+        """Time bracket of the ground -> image search, seconds."""
+        rows = self._shape[0]
+        margin = max(self.search_margin_fraction * rows,
+                     self.search_margin_s / self._line_times.line_period_s)
+        t0, t1 = sorted(float(v) for v in self._line_times.time(
+            np.array([-0.5 - margin, rows - 0.5 + margin])))
+        e0, e1 = self._ephemeris.valid_span_s
+        a0, a1 = self._attitude.valid_span_s
+        return max(t0, e0, a0), min(t1, e1, a1)
+
+    # ------------------------------------------------------------------ image -> ground
+    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        return _chunked(self._image_to_ground_chunk, self.chunk_points, row, col, h)
+
+    def _image_to_ground_chunk(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        t = self._line_times.time(row)
+        pos, _, rot, _ = self._state(t)
+        u = np.einsum("nij,nj->ni", rot, self._look.at(col))
+        lon, lat, status = _intersect(pos, u, h, self.intersection_tolerance_m,
+                                      self.intersection_max_iterations)
+        status[~np.all(np.isfinite(pos), axis=1) | ~np.all(np.isfinite(u), axis=1)] = _OUT
+        return lon, lat, status
+
+    # ------------------------------------------------------------------ ground -> image
+    def _residual(self, g: np.ndarray, pos: np.ndarray, rot: np.ndarray) -> tuple:
+        """Detector-plane residual at ground points g for states (pos, rot).
+
+        Returns ``f = d_x/d_z - tan_x(col)``, ``col``, ``d`` (N, 3) in the sensor frame.
+        """
+        diff = g - pos
+        if rot.ndim == 2:
+            d = diff @ rot
+        else:
+            d = np.einsum("nji,nj->ni", rot, diff)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ry = d[:, 1] / d[:, 2]
+            col, tx, _ = self._look._invert(ry)
+            f = d[:, 0] / d[:, 2] - tx
+        return f, col, d
+
+    def _solve_time(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exposure time and column of ground points g (N, 3) ECEF; with a status."""
+        n = g.shape[0]
+        t_out = np.full(n, np.nan)
+        col_out = np.full(n, np.nan)
+        status = np.full(n, _OUT, dtype=np.uint8)
+        lo, hi = self._span
+        if not lo < hi:
+            return t_out, col_out, status
+        ends = np.array([lo, hi])
+        p_end, _, r_end, _ = self._state(ends)
+        fa, _, da = self._residual(g, p_end[0], r_end[0])
+        fb, _, db = self._residual(g, p_end[1], r_end[1])
+        ok = (np.isfinite(fa) & np.isfinite(fb) & (da[:, 2] > 0) & (db[:, 2] > 0)
+              & (np.sign(fa) != np.sign(fb)))
+        idx = np.flatnonzero(ok)
+        a, fa = np.full(idx.size, lo), fa[idx]
+        b, fb = np.full(idx.size, hi), fb[idx]
+        # the two latest iterates (x0 older); col1, dz1: column and d_z at x1
+        x0, f0, x1, f1 = a.copy(), fa.copy(), b.copy(), fb.copy()
+        col1 = np.full(idx.size, np.nan)
+        dz1 = np.full(idx.size, np.nan)
+        gi = g[idx]
+        tol = self.search_tolerance_lines * self._line_times.line_period_s
+        stall = self.search_stall_lines * self._line_times.line_period_s
+        status[idx] = Status.MAX_ITERATIONS
+
+        def finish(fin: np.ndarray, good: np.ndarray) -> None:
+            nonlocal idx, gi, a, fa, b, fb, x0, f0, x1, f1, col1, dz1
+            sel = idx[fin]
+            t_out[sel] = x1[fin]
+            col_out[sel] = col1[fin]
+            status[sel] = np.where(good[fin] & (dz1[fin] > 0), _CONVERGED,
+                                   np.uint8(Status.DIVERGED))
+            keep = ~fin
+            idx, gi = idx[keep], gi[keep]
+            a, fa, b, fb = a[keep], fa[keep], b[keep], fb[keep]
+            x0, f0, x1, f1 = x0[keep], f0[keep], x1[keep], f1[keep]
+            col1, dz1 = col1[keep], dz1[keep]
+
+        for iteration in range(self.search_max_iterations + 1):
+            if idx.size == 0:
+                break
+            with np.errstate(invalid="ignore", divide="ignore"):
+                x = x1 - f1 * (x1 - x0) / (f1 - f0)
+            if iteration > 0:
+                # converged: the next secant correction is below the tolerance, or the
+                # residual is zero; or float64's floor: the last step was below
+                # search_stall_lines and did not reduce the residual
+                done = (np.abs(x - x1) <= tol) | (f1 == 0) | (
+                    (np.abs(x1 - x0) <= stall) & ~(np.abs(f1) < np.abs(f0)))
+                bad = ~np.isfinite(f1)
+                if iteration == self.search_max_iterations:
+                    break
+                if np.any(done | bad):
+                    finish(done | bad, done & ~bad)
+                    if idx.size == 0:
+                        break
+                    x = x[~(done | bad)]
+            inside = (x > np.minimum(a, b)) & (x < np.maximum(a, b))
+            x = np.where(inside, x, 0.5 * (a + b))
+            pos, _, rot, _ = self._state(x)
+            f, col, d = self._residual(gi, pos, rot)
+            same = np.sign(f) == np.sign(fa)  # keep the bracket
+            a = np.where(same, x, a)
+            fa = np.where(same, f, fa)
+            b = np.where(same, b, x)
+            fb = np.where(same, fb, f)
+            x0, f0, x1, f1, col1, dz1 = x1, f1, x, f, col, d[:, 2]
+        return t_out, col_out, status
+
+    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        return _chunked(self._ground_to_image_chunk, self.chunk_points, lon, lat, h)
+
+    def _ground_to_image_chunk(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        g = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
+        t, col, status = self._solve_time(g)
+        return self._line_times.row(t), col, status
+
+    def _ground_seed(self) -> tuple[float, float]:
+        rows, cols = self._shape
+        g, status = self.backproject_with_status((rows - 1) / 2.0, (cols - 1) / 2.0, 0.0)
+        return float(g.lon), float(g.lat)
+
+    # ------------------------------------------------------------------ partials
+    #: time step (seconds) of the central difference giving d(residual)/dt in the partials
+    partials_time_step_s: ClassVar[float] = 1e-4
+
+    def _implicit(self, lon, lat, h):
+        """Solve the point, then the (N, 2, 2) Jacobian of (E1, E2) in (t, col) and pieces."""
+        lon, lat, h = (np.asarray(v, np.float64) for v in np.broadcast_arrays(lon, lat, h))
+        shape = lon.shape
+        g = np.stack(coords.geodetic_to_ecef(lon.ravel(), lat.ravel(), h.ravel()), axis=-1)
+        t, col, status = self._solve_time(g)
+        ok = status == _CONVERGED
+        t = np.where(ok, t, np.nan)
+        pos, _, rot, m_orb = self._state(t)
+        diff = g - pos
+        d = np.einsum("nji,nj->ni", rot, diff)
+        dz = d[:, 2]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            # d(E1, E2)/d(d): E1 = d_x/d_z - Tx, E2 = d_y/d_z - Ty
+            de_dd = np.zeros((t.size, 2, 3))
+            de_dd[:, 0, 0] = 1.0 / dz
+            de_dd[:, 0, 2] = -d[:, 0] / (dz * dz)
+            de_dd[:, 1, 1] = 1.0 / dz
+            de_dd[:, 1, 2] = -d[:, 1] / (dz * dz)
+            _, _, dtan = self._look._invert(d[:, 1] / dz)
+            # d(E)/dt at fixed G and col: central difference of the sensor-frame ratios
+            step = self.partials_time_step_s
+            ratios = []
+            for sign in (1.0, -1.0):
+                p_s, _, r_s, _ = self._state(t + sign * step)
+                ds = np.einsum("nji,nj->ni", r_s, g - p_s)
+                ratios.append(ds[:, :2] / ds[:, 2:3])
+            de_dt = (ratios[0] - ratios[1]) / (2.0 * step)
+        jac = np.stack([de_dt, -dtan], axis=-1)  # (N, 2, 2): columns d/dt, d/dcol
+        return shape, t, d, rot, m_orb, de_dd, jac
+
+    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """d(row, col)/d(x, y, z) ECEF, pixels per metre, (*S, 2, 3).
+
+        Implicit-function theorem on the two detector-plane equations
+        ``d_x/d_z = tan_x(col)``, ``d_y/d_z = tan_y(col)`` with ``d = R'(t)^T (G - P'(t))``;
+        their time derivative is a central difference of ``partials_time_step_s``.
+        """
+        shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
+        de_dg = de_dd @ np.swapaxes(rot, -1, -2)  # (N, 2, 3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sol = -np.linalg.solve(_nan_safe(jac), de_dg)  # (N, 2, 3): d(t, col)/dG
+        sol[~np.isfinite(t)] = np.nan
+        sol[:, 0, :] /= self._line_times.line_period_s
+        return sol.reshape(shape + (2, 3))
+
+    def partials_parameters(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """d(row, col)/d(parameter k), pixels per parameter unit, (*S, 2, P).
+
+        Analytic in the parameters (``dd/dp`` of the sensor-frame vector) through the
+        implicit-function theorem, as :meth:`partials_ground`.
+        """
+        shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
+        n = t.size
+        dt = t - self._line_times.reference_time_s
+        dd_dp = np.empty((n, 3, 12))
+        # position: d = R'^T (G - P'), dP'/dp = M_orb[:, :, k] (x dt for the rates)
+        rt_m = np.einsum("nji,njk->nik", rot, m_orb)  # R'^T M_orb
+        rt_m[:, :, 2] *= -1.0  # radial is up = -z_o
+        dd_dp[:, :, 0:3] = -rt_m
+        dd_dp[:, :, 3:6] = -rt_m * dt[:, None, None]
+        # attitude: dd/d(angle_k) = -a_k x d, a_roll = (Ry Rz)^T ex, a_pitch = Rz^T ey, a_yaw = ez
+        ang = self._full[6:9] + dt[:, None] * self._full[9:12]
+        cb, sb = np.cos(ang[:, 1]), np.sin(ang[:, 1])
+        cc, sc = np.cos(ang[:, 2]), np.sin(ang[:, 2])
+        axis_roll = np.stack([cb * cc, -cb * sc, sb], axis=-1)  # first row of Ry Rz
+        axis_pitch = np.stack([sc, cc, np.zeros_like(cc)], axis=-1)  # second row of Rz
+        axis_yaw = np.broadcast_to([0.0, 0.0, 1.0], (n, 3))
+        for k, axis in enumerate((axis_roll, axis_pitch, axis_yaw)):
+            col = -np.cross(axis, d)
+            dd_dp[:, :, 6 + k] = col
+            dd_dp[:, :, 9 + k] = col * dt[:, None]
+        de_dp = de_dd @ dd_dp  # (N, 2, 12)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sol = -np.linalg.solve(_nan_safe(jac), de_dp)
+        sol[~np.isfinite(t)] = np.nan
+        sol[:, 0, :] /= self._line_times.line_period_s
+        return sol[:, :, self._index].reshape(shape + (2, len(self._index)))
+
+    # ------------------------------------------------------------------ example
+    @classmethod
+    def example(cls, shape: tuple[int, int] = (800, 1000), *, roll: float = 0.05,
+                frame: str = "orbital") -> LinescanModel:
+        """A 2.5 m GSD scanner on a 700 km circular orbit over Nice, France.
+
+        The orbit ignores the Earth's rotation (a circle in ECEF through the zenith of
+        (7.05 E, 43.7 N), heading 190 degrees); the attitude, sampled every 0.05 s in the
+        orbital frame, rolls by ``roll`` radians with a small pitch, yaw and a slow wobble;
+        the detectors have a slight along-track curvature. ``frame="ecef"`` stores the same
+        attitude as sensor -> ECEF quaternions.
+        """
+        rows, cols = (int(v) for v in shape)
+        alt, gsd = 700e3, 2.5
+        lon0, lat0 = np.radians(7.05), np.radians(43.70)
+        centre = np.array([np.cos(lat0) * np.cos(lon0), np.cos(lat0) * np.sin(lon0), np.sin(lat0)])
+        enu = coords.enu_rotation(7.05, 43.70)
+        heading = np.radians(190.0)
+        along = np.sin(heading) * enu[0] + np.cos(heading) * enu[1]
+        radius = coords.WGS84_A + alt
+        omega = np.sqrt(3.986004418e14 / radius**3)
+        speed = omega * coords.WGS84_A * 0.99
+        line_period = gsd / speed
+        half = 0.6 * rows * line_period + 2.0
+        t_eph = np.arange(-np.ceil(half), np.ceil(half) + 1.0, 1.0)
+        ang = omega * t_eph
+        pos = radius * (np.cos(ang)[:, None] * centre + np.sin(ang)[:, None] * along)
+        vel = radius * omega * (-np.sin(ang)[:, None] * centre + np.cos(ang)[:, None] * along)
+        ephemeris = Ephemeris(t_eph, pos, vel)
+        t_att = np.arange(-half, half + 0.05, 0.05)
+        wobble = 2e-5 * np.sin(2 * np.pi * 0.3 * t_att)
+        r_att = rotation_xyz(roll + wobble, 0.01 + 0.5 * wobble, 0.002 + 0 * t_att)
+        if frame == "ecef":
+            p_att, v_att = ephemeris.at(t_att)
+            r_att = orbital_frame(p_att, v_att) @ r_att
+        attitude = Attitude(t_att, matrix_to_quaternion(r_att), frame=frame)
+        c = np.arange(cols) - (cols - 1) / 2.0
+        ifov = gsd / alt
+        look = LookDirections.from_tan_angles(2e-4 + 1e-10 * c**2, c * ifov)
+        lines = LineTimes((rows - 1) / 2.0, 0.0, line_period)
+        return cls((rows, cols), ephemeris, attitude, look, lines,
+                   epoch="2003-06-21T02:30:00Z")
+
+
+# ==================================================================================== internals
+def _chunked(kernel, size: int, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple:
+    """Run ``kernel(a, b, c) -> (x, y, status)`` over consecutive chunks of ``size`` points."""
+    n = a.shape[0]
+    if n <= size:
+        return kernel(a, b, c)
+    x, y = np.empty(n), np.empty(n)
+    status = np.empty(n, dtype=np.uint8)
+    for start in range(0, n, size):
+        sl = slice(start, start + size)
+        x[sl], y[sl], status[sl] = kernel(a[sl], b[sl], c[sl])
+    return x, y, status
+
+
+def _nan_safe(jac: np.ndarray) -> np.ndarray:
+    """Replace non-finite or singular 2x2 systems by the identity (their results are masked)."""
+    bad = ~np.all(np.isfinite(jac), axis=(-2, -1))
+    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+    bad |= ~(det != 0)
+    if bad.any():
+        jac = jac.copy()
+        jac[bad] = np.eye(2)
+    return jac
+
+
+def _intersect(pos: np.ndarray, u: np.ndarray, h: np.ndarray, tol: float, max_iter: int):
+    """Intersect rays ``pos + s u`` (N, 3) with the surfaces of geodetic height h (N,).
+
+    Start: the nearer root on the ellipsoid of semi-axes (a + h, b + h); then Newton on s with
+    ``dh/ds = up . u``. Returns lon, lat (degrees) and a status.
+    """
+    n = h.shape[0]
+    status = np.full(n, np.uint8(Status.NO_INTERSECTION), dtype=np.uint8)
+    lon = np.full(n, np.nan)
+    lat = np.full(n, np.nan)
+    ax = coords.WGS84_A + h
+    bz = coords.WGS84_B + h
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pa = pos / np.stack([ax, ax, bz], axis=-1)
+        ua = u / np.stack([ax, ax, bz], axis=-1)
+        qa = np.sum(ua * ua, axis=1)
+        qb = np.sum(pa * ua, axis=1)  # half the linear coefficient
+        qc = np.sum(pa * pa, axis=1) - 1.0
+        disc = qb * qb - qa * qc
+        s = qc / (-qb + np.sqrt(disc))  # the nearer root, stable form (qb < 0, qc > 0)
+    todo = np.flatnonzero(np.isfinite(s) & (s > 0) & (qc > 0))
+    for _ in range(max_iter):
+        if todo.size == 0:
+            break
+        p = pos[todo] + s[todo, None] * u[todo]
+        g = coords.ecef_to_geodetic(p[:, 0], p[:, 1], p[:, 2])
+        lon[todo], lat[todo] = g.lon, g.lat
+        miss = g.h - h[todo]
+        cl = np.cos(np.radians(g.lat))
+        up = np.stack([cl * np.cos(np.radians(g.lon)), cl * np.sin(np.radians(g.lon)),
+                       np.sin(np.radians(g.lat))], axis=-1)
+        rate = np.sum(up * u[todo], axis=1)
+        done = np.abs(miss) <= tol
+        bad = ~(rate < 0) | ~np.isfinite(miss)
+        status[todo[done & ~bad]] = _CONVERGED
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s[todo] -= miss / rate
+        todo = todo[~done & ~bad]
+    status[todo] = Status.MAX_ITERATIONS
+    return lon, lat, status
