@@ -1,16 +1,24 @@
-"""The one place geoblock opens files: sensor models (and, in later modules, DEMs and images)."""
+"""The one place geoblock opens files: sensor models, DEMs, images, point files and block files."""
 
-from geoblock.io.dem import open_dem
-from geoblock.io.images import ImageSource, open_image, write_ortho
+from geoblock.io.blocks import Block, BlockDem, BlockImage, read_block, write_block
+from geoblock.io.dem import open_dem, write_dem
+from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
 from geoblock.io.models import open_model, write_model
 from geoblock.io.points import read_points, write_points
 
 __all__ = [
+    "Block",
+    "BlockDem",
+    "BlockImage",
     "ImageSource",
     "open_dem",
     "open_image",
     "open_model",
+    "read_block",
     "read_points",
+    "write_block",
+    "write_dem",
+    "write_image",
     "write_model",
     "write_ortho",
     "write_points",

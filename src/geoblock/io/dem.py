@@ -1,20 +1,25 @@
-"""``open_dem``: every DEM source geoblock reads, as a :class:`~geoblock.dem.DemSource`."""
+"""``open_dem``: every DEM source geoblock reads, as a :class:`~geoblock.dem.DemSource`;
+``write_dem``: a height grid written as a GeoTIFF that states its vertical datum."""
 
 from __future__ import annotations
 
+import math
 import os
+import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from geoblock.dem.filled import FilledDem
 from geoblock.dem.base import DemBase
 from geoblock.dem.constant import ConstantDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.raster import VERTICALS, MosaicDem, RasterDem
-from geoblock.errors import DemError
+from geoblock.errors import DemError, GeoblockIOError
 
-__all__ = ["open_dem"]
+__all__ = ["open_dem", "vertical_crs", "write_dem"]
 
 PathLike = str | os.PathLike[str]
 
@@ -160,3 +165,150 @@ def _from_dict(data: Mapping[str, Any]) -> DemBase:
     except KeyError as exc:
         raise DemError(f"open_dem: DEM dictionary of kind {kind!r} lacks the field {exc}") from None
     raise DemError(f"open_dem: unknown DEM dictionary kind {kind!r} (field 'dem')")
+
+
+# ---------------------------------------------------------------------------- writing
+#: WKT of a vertical CRS "WGS 84 ellipsoidal height", the vertical part of the compound CRS
+#: that :func:`write_dem` gives projected grids of ellipsoidal heights (GeoTIFF stores it as a
+#: user-defined vertical CRS; :func:`open_dem` recognises the name).
+_ELLIPSOIDAL_VERTCRS = (
+    'VERTCRS["WGS 84 ellipsoidal height",VDATUM["WGS 84 ellipsoid"],CS[vertical,1],'
+    'AXIS["gravity-related height (H)",up,LENGTHUNIT["metre",1]]]'
+)
+
+
+def vertical_crs(crs: Any, vertical: str) -> Any:
+    """The CRS that states ``vertical`` in a GeoTIFF, built on ``crs``'s horizontal part.
+
+    Parameters
+    ----------
+    crs : pyproj.CRS or str
+        Horizontal CRS of the grid (a compound CRS's vertical part is replaced).
+    vertical : {"ellipsoid", "geoid"}
+        ``"geoid"``: compound with EGM96 height (EPSG:5773); ``"ellipsoid"``: EPSG:4979 for
+        WGS84 longitude/latitude grids, otherwise compound with a "WGS 84 ellipsoidal
+        height" vertical CRS.
+
+    Returns
+    -------
+    pyproj.CRS
+        A CRS from which :func:`open_dem` reads ``vertical`` back without being told.
+    """
+    import pyproj
+    from pyproj.crs import CompoundCRS
+
+    from geoblock.dem.grid import _is_lonlat
+
+    if vertical not in VERTICALS:
+        raise DemError(f"write_dem: vertical must be 'ellipsoid' or 'geoid', got {vertical!r}")
+    try:
+        crs = pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError as exc:
+        raise DemError(f"write_dem: invalid crs {crs!r}: {exc}") from None
+    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+    if len(horizontal.axis_info) == 3:
+        horizontal = horizontal.to_2d()
+    if vertical == "ellipsoid" and _is_lonlat(horizontal):
+        return pyproj.CRS.from_epsg(4979)
+    vert = (pyproj.CRS.from_epsg(5773) if vertical == "geoid"
+            else pyproj.CRS.from_wkt(_ELLIPSOIDAL_VERTCRS))
+    return CompoundCRS(name=f"{horizontal.name} + {vert.name}", components=[horizontal, vert])
+
+
+def write_dem(
+    path: PathLike,
+    heights: np.ndarray,
+    transform: Any,
+    crs: Any,
+    vertical: str,
+    *,
+    nodata: float = -9999.0,
+    dtype: str = "float32",
+    compress: str | None = "deflate",
+) -> Path:
+    """Write a height grid as a GeoTIFF whose CRS states its vertical datum, atomically.
+
+    :func:`open_dem` reads the file back with the same datum and no ``vertical=`` argument:
+    the CRS is compound (horizontal + EGM96 height, or + "WGS 84 ellipsoidal height") or, for
+    ellipsoidal heights on WGS84 longitude/latitude, the 3-D EPSG:4979 (see
+    :func:`vertical_crs`). The band also carries the tags ``GEOBLOCK_VERTICAL``
+    (``ellipsoid``/``geoid``) and ``VERTICAL_DATUM`` for people and other tools.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination; written under a temporary name in the same directory (``.NAME.<random>.tmp``)
+        and renamed to ``path`` only when complete.
+    heights : array_like, (R, C)
+        Metres above ``vertical``; NaN marks nodata.
+    transform : affine.Affine or sequence of 6
+        GDAL-style geotransform (pixel corners), as rasterio's.
+    crs : pyproj.CRS or str
+        CRS of the grid (its horizontal part is used).
+    vertical : {"ellipsoid", "geoid"}
+        Datum of ``heights``: the WGS84 ellipsoid or the EGM96 geoid.
+    nodata : float
+        Value written for NaN heights, and declared as the file's nodata.
+    dtype : {"float32", "float64"}
+        Sample type in the file.
+    compress : str or None
+        GDAL compression.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    DemError
+        Invalid heights, transform, CRS, ``vertical`` or ``dtype``.
+    GeoblockIOError
+        The directory does not exist or GDAL cannot write.
+    """
+    import rasterio
+    from affine import Affine
+
+    path = Path(path)
+    arr = np.asarray(heights, dtype=np.float64)
+    if arr.ndim != 2 or min(arr.shape) < 1:
+        raise DemError(f"write_dem {path}: heights must be a non-empty 2-D array, got shape "
+                       f"{arr.shape}")
+    if dtype not in ("float32", "float64"):
+        raise DemError(f"write_dem {path}: dtype must be 'float32' or 'float64', got {dtype!r}")
+    if not math.isfinite(float(nodata)):
+        raise DemError(f"write_dem {path}: nodata must be a finite number, got {nodata!r}")
+    if np.isinf(arr).any():
+        raise DemError(f"write_dem {path}: heights contain infinite values")
+    transform = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
+    if transform.is_degenerate:
+        raise DemError(f"write_dem {path}: degenerate transform {tuple(transform)[:6]}")
+    full_crs = vertical_crs(crs, vertical)
+    if not path.parent.is_dir():
+        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
+    data = np.where(np.isnan(arr), float(nodata), arr).astype(dtype)
+    profile: dict[str, Any] = {
+        "driver": "GTiff", "width": arr.shape[1], "height": arr.shape[0], "count": 1,
+        "dtype": dtype, "crs": rasterio.crs.CRS.from_wkt(full_crs.to_wkt()),
+        "transform": transform, "nodata": float(nodata),
+    }
+    if max(arr.shape) > 512:
+        profile.update(tiled=True, blockxsize=256, blockysize=256)
+    if compress:
+        profile["compress"] = compress
+    datum = "EGM96 geoid" if vertical == "geoid" else "WGS84 ellipsoid"
+    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+    try:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(data, 1)
+            dst.update_tags(1, GEOBLOCK_VERTICAL=vertical, VERTICAL_DATUM=datum)
+            dst.set_band_unit(1, "metre")
+        os.replace(tmp, path)
+    except rasterio.errors.RasterioIOError as exc:
+        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
+    finally:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+    return path

@@ -27,7 +27,7 @@ import numpy as np
 
 from geoblock.errors import GeoblockIOError
 
-__all__ = ["ImageSource", "open_image", "write_ortho"]
+__all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
 
 PathLike = str | os.PathLike[str]
 
@@ -370,3 +370,84 @@ def write_ortho(
                 pass
     return path
 
+
+
+def write_image(
+    path: PathLike,
+    array: np.ndarray,
+    *,
+    nodata: float | None = None,
+    compress: str | None = "deflate",
+    tags: dict[str, str] | None = None,
+) -> Path:
+    """Write an in-memory raw (not georeferenced) image as a GeoTIFF, atomically.
+
+    The file has no CRS and no geotransform: pixel ``(row, col)`` of ``array`` is pixel
+    ``(row, col)`` of the file, and its geometry comes from a sensor model (for example a
+    model JSON beside it, :func:`~geoblock.io.write_model`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination; written under a temporary name in the same directory and renamed to
+        ``path`` only when complete.
+    array : ndarray, (R, C) or (bands, R, C)
+        Pixels of any numeric dtype GeoTIFF holds (``uint8``, ``uint16``, ``float32``...).
+    nodata : float, optional
+        Nodata value declared in the file.
+    compress : str or None
+        GDAL compression.
+    tags : dict of str to str, optional
+        Dataset metadata tags.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        ``array`` is not 2-D or 3-D.
+    GeoblockIOError
+        The directory does not exist or GDAL cannot write.
+    """
+    import rasterio
+
+    path = Path(path)
+    data = np.asarray(array)
+    if data.ndim == 2:
+        data = data[None]
+    if data.ndim != 3 or min(data.shape) < 1:
+        raise ValueError(f"write_image: array must be (R, C) or (bands, R, C), got shape "
+                         f"{np.shape(array)}")
+    if data.dtype == np.dtype(bool):
+        data = data.astype(np.uint8)
+    if not path.parent.is_dir():
+        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
+    bands, rows, cols = data.shape
+    profile: dict[str, Any] = {"driver": "GTiff", "width": cols, "height": rows, "count": bands,
+                               "dtype": data.dtype.name}
+    if max(rows, cols) > 512:
+        profile.update(tiled=True, blockxsize=256, blockysize=256)
+    if compress:
+        profile["compress"] = compress
+    if nodata is not None:
+        profile["nodata"] = nodata
+    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(tmp, "w", **profile) as dst:
+                dst.write(data)
+                if tags:
+                    dst.update_tags(**{str(k): str(v) for k, v in tags.items()})
+        os.replace(tmp, path)
+    except rasterio.errors.RasterioIOError as exc:
+        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
+    finally:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+    return path

@@ -1,0 +1,501 @@
+"""Block files: the TOML description of a block of images to adjust together.
+
+A block file names the images (sensor-model file, optional raster, the parameter set to adjust),
+the point files, the DEM, the adjustment method with its options and the outputs wanted.
+Relative paths are relative to the block file's directory. Example::
+
+    # geoblock block file
+    version = 1
+    name = "taiwan-3-strips"
+    method = "mba"            # the adjustment: mba, dg, rfm, rpcv0, rpcv1, ...
+
+    [points]
+    ground = "ground.csv"     # id, lon, lat, h, sigma_e, sigma_n, sigma_h, kind (gcp|icp)
+    image = "image.csv"       # id, image, row, col, sigma[, kind]
+    truth = "truth.csv"       # optional: simulated truth, for accuracy reports
+
+    [dem]
+    path = "dem.tif"          # or "const:250"
+    vertical = "geoid"        # optional: as the file states by default
+    geoid = "egm96_15.gtx"    # optional
+
+    [options]                 # free-form options of the method
+    dem_control = true
+    max_iterations = 20
+
+    [outputs]                 # free-form: name = path
+    directory = "out"
+    report = "out/report.md"
+
+    [[images]]
+    id = "strip1"
+    model = "strip1.json"
+    raster = "strip1.tif"     # optional
+    parameters = "dg"         # optional: the parameter set to adjust ("default")
+    sigmas = { dp_along = 10.0, roll_bias = 1e-5 }   # optional a-priori sigmas
+
+:func:`read_block` validates the file (unknown keys, types, duplicate image ids, missing
+required fields are errors naming the field) and returns a frozen :class:`Block`;
+:func:`write_block` writes one back (paths relative to the new file where possible).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tomllib
+import uuid
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from geoblock.errors import GeoblockIOError, ModelFormatError
+
+__all__ = ["Block", "BlockDem", "BlockFileError", "BlockImage", "dumps_toml", "read_block",
+           "write_block"]
+
+BLOCK_FORMAT_VERSION = 1
+_METHOD = re.compile(r"^[a-z][a-z0-9_-]*$")
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+class BlockFileError(ModelFormatError):
+    """A block file is malformed (names the file and the field)."""
+
+
+def _readonly(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
+    return MappingProxyType({k: _freeze(v) for k, v in mapping.items()})
+
+
+def _freeze(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return _readonly(value)
+    if isinstance(value, list | tuple):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+def _thaw(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: _thaw(v) for k, v in value.items()}
+    if isinstance(value, tuple | list):
+        return [_thaw(v) for v in value]
+    return value
+
+
+# ---------------------------------------------------------------------------- values
+@dataclass(frozen=True)
+class BlockImage:
+    """One image of a block.
+
+    Attributes
+    ----------
+    id : str
+        The image's name, as used in the ``image`` column of the measurement file.
+    model : pathlib.Path
+        Sensor-model file (vendor metadata or model JSON), absolute.
+    raster : pathlib.Path or None
+        The image's pixels, absolute, if given.
+    parameters : str
+        Name of the parameter set to adjust (a preset of the model, or ``"default"``).
+    sigmas : mapping of str to float
+        A-priori sigmas of named parameters, overriding the model's.
+    """
+
+    id: str
+    model: Path
+    raster: Path | None = None
+    parameters: str = "default"
+    sigmas: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sigmas", _readonly(dict(self.sigmas)))
+
+
+@dataclass(frozen=True)
+class BlockDem:
+    """The DEM of a block.
+
+    Attributes
+    ----------
+    source : str
+        Absolute path of the DEM file, or ``"const:H"``.
+    vertical : {"ellipsoid", "geoid"} or None
+        Datum of the heights; ``None``: as the file states.
+    geoid : pathlib.Path or None
+        Geoid grid, absolute.
+    """
+
+    source: str
+    vertical: str | None = None
+    geoid: Path | None = None
+
+
+@dataclass(frozen=True)
+class Block:
+    """A block of images to adjust together, as a block file describes it.
+
+    Attributes
+    ----------
+    images : tuple of BlockImage
+    method : str
+        Adjustment method (lower-case name: ``mba``, ``dg``, ``rfm``, ``rpcv0``, ``rpcv1``...;
+        the adjustment engine checks it is one it knows).
+    ground_points : pathlib.Path or None
+        Ground-point CSV (GCPs and ICPs).
+    image_points : pathlib.Path or None
+        Image-measurement CSV.
+    truth : pathlib.Path or None
+        Truth CSV of a simulated block.
+    dem : BlockDem or None
+    options : mapping
+        The method's options (read-only; nested tables are read-only mappings, arrays tuples).
+    outputs : mapping of str to pathlib.Path
+        Output name to absolute path.
+    name : str
+        Free label.
+    """
+
+    images: tuple[BlockImage, ...]
+    method: str
+    ground_points: Path | None = None
+    image_points: Path | None = None
+    truth: Path | None = None
+    dem: BlockDem | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
+    outputs: Mapping[str, Path] = field(default_factory=dict)
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "images", tuple(self.images))
+        object.__setattr__(self, "options", _readonly(dict(self.options)))
+        outputs = {k: Path(v) for k, v in self.outputs.items()}
+        object.__setattr__(self, "outputs", _readonly(outputs))
+        _check(self, "<Block>")
+
+    def image(self, image_id: str) -> BlockImage:
+        """The image of that id (``KeyError`` naming the ids otherwise)."""
+        for im in self.images:
+            if im.id == image_id:
+                return im
+        raise KeyError(f"no image {image_id!r} in the block; images: {[i.id for i in self.images]}")
+
+
+def _check(block: Block, where: str) -> None:
+    if not block.images:
+        raise BlockFileError(f"{where}: 'images': a block needs at least one image")
+    seen: set[str] = set()
+    for k, im in enumerate(block.images):
+        if not im.id:
+            raise BlockFileError(f"{where}: 'images[{k}].id' is empty")
+        if im.id in seen:
+            raise BlockFileError(f"{where}: 'images[{k}].id': duplicate image id {im.id!r}")
+        seen.add(im.id)
+        for name, sigma in im.sigmas.items():
+            if not (isinstance(sigma, int | float) and not isinstance(sigma, bool) and sigma >= 0):
+                raise BlockFileError(f"{where}: 'images[{k}].sigmas.{name}' must be a number >= 0 "
+                                     f"(inf for free), got {sigma!r}")
+    if not _METHOD.fullmatch(block.method):
+        raise BlockFileError(f"{where}: 'method' must be a lower-case name such as 'mba', 'dg', "
+                             f"'rfm', got {block.method!r}")
+    if block.dem is not None and block.dem.vertical not in (None, "ellipsoid", "geoid"):
+        raise BlockFileError(f"{where}: 'dem.vertical' must be 'ellipsoid' or 'geoid', got "
+                             f"{block.dem.vertical!r}")
+
+
+# ---------------------------------------------------------------------------- reading
+_TOML_TYPE = {str: "string", int: "integer", float: "float", bool: "boolean", list: "array",
+              dict: "table"}
+
+
+def _take(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str,
+          required: bool = False, default: Any = None) -> Any:
+    if key not in table:
+        if required:
+            raise BlockFileError(f"{where}: the required field '{key}' is missing")
+        return default
+    value = table.pop(key)
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+        name = " or ".join(_TOML_TYPE.get(k, k.__name__) for k in kinds)
+        raise BlockFileError(f"{where}: '{key}' must be a {name}, got {value!r}")
+    return value
+
+
+def _no_more(table: dict[str, Any], where: str, allowed: str) -> None:
+    if table:
+        raise BlockFileError(f"{where}: unknown field(s) {sorted(table)}; allowed: {allowed}")
+
+
+def _resolve(base: Path, text: str, where: str) -> Path:
+    if not text:
+        raise BlockFileError(f"{where}: empty path")
+    p = Path(os.path.expanduser(text))
+    return p if p.is_absolute() else (base / p).resolve()
+
+
+def read_block(path: str | os.PathLike[str]) -> Block:
+    """Read and validate a block file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The TOML block file.
+
+    Returns
+    -------
+    Block
+        With every path absolute (relative paths are taken from the file's directory). The
+        files named are not opened (nor required to exist yet: outputs may not).
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be read.
+    BlockFileError
+        Invalid TOML, an unknown or missing field, a value of the wrong type, an unsupported
+        ``version``, duplicate image ids (the message names the file and the field).
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot read block file {str(path)!r}: {exc.strerror}") from exc
+    name = str(path)
+    try:
+        data = tomllib.loads(raw.decode("utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise BlockFileError(f"{name}: not a valid TOML file: {exc}") from None
+    base = path.resolve().parent
+
+    version = _take(data, "version", int, name, default=BLOCK_FORMAT_VERSION)
+    if version != BLOCK_FORMAT_VERSION:
+        raise BlockFileError(f"{name}: 'version' {version} is not supported (this geoblock reads "
+                             f"version {BLOCK_FORMAT_VERSION})")
+    label = _take(data, "name", str, name, default="")
+    method = _take(data, "method", str, name, required=True)
+
+    images_raw = _take(data, "images", list, name, required=True)
+    images = []
+    for k, item in enumerate(images_raw):
+        where = f"{name}: images[{k}]"
+        if not isinstance(item, dict):
+            raise BlockFileError(f"{where} must be a table ([[images]])")
+        item = dict(item)
+        image_id = _take(item, "id", str, where, required=True)
+        model = _resolve(base, _take(item, "model", str, where, required=True), f"{where}.model")
+        raster_text = _take(item, "raster", str, where)
+        raster = None if raster_text is None else _resolve(base, raster_text, f"{where}.raster")
+        parameters = _take(item, "parameters", str, where, default="default")
+        sigmas = _take(item, "sigmas", dict, where, default={})
+        for key, value in sigmas.items():
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise BlockFileError(f"{where}: 'sigmas.{key}' must be a number, got {value!r}")
+        _no_more(item, where, "id, model, raster, parameters, sigmas")
+        images.append(BlockImage(image_id, model, raster, parameters,
+                                 {k: float(v) for k, v in sigmas.items()}))
+
+    points = dict(_take(data, "points", dict, name, default={}))
+    where = f"{name}: points"
+    paths = {}
+    for key in ("ground", "image", "truth"):
+        text = _take(points, key, str, where)
+        paths[key] = None if text is None else _resolve(base, text, f"{where}.{key}")
+    _no_more(points, where, "ground, image, truth")
+
+    dem = None
+    dem_raw = _take(data, "dem", dict, name)
+    if dem_raw is not None:
+        dem_raw = dict(dem_raw)
+        where = f"{name}: dem"
+        source = _take(dem_raw, "path", str, where, required=True)
+        if not source.startswith("const:"):
+            source = str(_resolve(base, source, f"{where}.path"))
+        vertical = _take(dem_raw, "vertical", str, where)
+        geoid_text = _take(dem_raw, "geoid", str, where)
+        _no_more(dem_raw, where, "path, vertical, geoid")
+        dem = BlockDem(source, vertical,
+                       None if geoid_text is None else _resolve(base, geoid_text, f"{where}.geoid"))
+
+    options = _take(data, "options", dict, name, default={})
+    outputs_raw = dict(_take(data, "outputs", dict, name, default={}))
+    outputs = {}
+    for key, value in outputs_raw.items():
+        if not isinstance(value, str):
+            raise BlockFileError(f"{name}: 'outputs.{key}' must be a path (string), got {value!r}")
+        outputs[key] = _resolve(base, value, f"{name}: outputs.{key}")
+    _no_more(data, name, "version, name, method, images, points, dem, options, outputs")
+    try:
+        return Block(tuple(images), method, paths["ground"], paths["image"], paths["truth"], dem,
+                     options, outputs, label)
+    except BlockFileError as exc:
+        raise BlockFileError(str(exc).replace("<Block>", name)) from None
+
+
+# ---------------------------------------------------------------------------- writing
+def _relative(path: Path | str, base: Path) -> str:
+    text = str(path)
+    if text.startswith("const:"):
+        return text
+    p = Path(path)
+    try:
+        return Path(os.path.relpath(p, base)).as_posix() if p.is_absolute() else p.as_posix()
+    except ValueError:  # another drive (Windows)
+        return str(p)
+
+
+def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """The block as the TOML document's dictionary; paths relative to ``base`` if given."""
+    b = Path(base).resolve() if base is not None else None
+
+    def rel(p: Path | str) -> str:
+        return _relative(p, b) if b is not None else str(p)
+
+    out: dict[str, Any] = {"version": BLOCK_FORMAT_VERSION}
+    if block.name:
+        out["name"] = block.name
+    out["method"] = block.method
+    points = {k: rel(v) for k, v in (("ground", block.ground_points), ("image", block.image_points),
+                                     ("truth", block.truth)) if v is not None}
+    if points:
+        out["points"] = points
+    if block.dem is not None:
+        dem: dict[str, Any] = {"path": rel(block.dem.source)}
+        if block.dem.vertical is not None:
+            dem["vertical"] = block.dem.vertical
+        if block.dem.geoid is not None:
+            dem["geoid"] = rel(block.dem.geoid)
+        out["dem"] = dem
+    if block.options:
+        out["options"] = _thaw(block.options)
+    if block.outputs:
+        out["outputs"] = {k: rel(v) for k, v in block.outputs.items()}
+    images = []
+    for im in block.images:
+        item: dict[str, Any] = {"id": im.id, "model": rel(im.model)}
+        if im.raster is not None:
+            item["raster"] = rel(im.raster)
+        item["parameters"] = im.parameters
+        if im.sigmas:
+            item["sigmas"] = dict(im.sigmas)
+        images.append(item)
+    out["images"] = images
+    return out
+
+
+def write_block(path: str | os.PathLike[str], block: Block) -> Path:
+    """Write a block file (atomically: a temporary name in the same directory, then renamed).
+
+    Paths are written relative to the file's directory (absolute when on another drive), so
+    that a block directory can be moved as a whole; :func:`read_block` gives back an equal
+    :class:`Block`.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
+    text = "# geoblock block file (docs: user-guide/simulation.md)\n" + dumps_toml(
+        block_to_dict(block, path.parent))
+    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot write block file {str(path)!r}: {exc.strerror}") from exc
+    finally:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+    return path
+
+
+# ---------------------------------------------------------------------------- small TOML writer
+def _key(k: str) -> str:
+    return k if _BARE_KEY.fullmatch(k) else _string(k)
+
+
+def _string(s: str) -> str:
+    out = ['"']
+    for ch in s:
+        code = ord(ch)
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif ch == "\r":
+            out.append("\\r")
+        elif code < 0x20 or code == 0x7F:
+            out.append(f"\\u{code:04X}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _value(v: Any, where: str) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        text = repr(v)
+        return text if any(c in text for c in ".en") else text + ".0"
+    if isinstance(v, str | Path):
+        return _string(str(v))
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_value(x, where) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{" + ", ".join(f"{_key(str(k))} = {_value(x, where)}" for k, x in v.items()) + "}"
+    raise BlockFileError(f"TOML writer: {where}: cannot write a {type(v).__name__} ({v!r})")
+
+
+def _is_table_array(v: Any) -> bool:
+    return isinstance(v, list | tuple) and bool(v) and all(isinstance(x, Mapping) for x in v)
+
+
+def dumps_toml(data: Mapping[str, Any]) -> str:
+    """A TOML document of ``data`` (str, int, float incl. nan/inf, bool, lists, nested tables).
+
+    Scalars and inline arrays of a table come first, then its sub-tables (``[a.b]``) and
+    arrays of tables (``[[a.b]]``); ``tomllib.loads`` gives ``data`` back.
+    """
+    lines: list[str] = []
+
+    def emit(table: Mapping[str, Any], prefix: tuple[str, ...]) -> None:
+        subtables = []
+        for k, v in table.items():
+            if isinstance(v, Mapping) or _is_table_array(v):
+                subtables.append((k, v))
+            else:
+                lines.append(f"{_key(str(k))} = {_value(v, '.'.join(prefix + (str(k),)))}")
+        for k, v in subtables:
+            name = prefix + (str(k),)
+            header = ".".join(_key(p) for p in name)
+            if isinstance(v, Mapping):
+                lines.append("")
+                lines.append(f"[{header}]")
+                emit(v, name)
+            else:
+                for item in v:
+                    lines.append("")
+                    lines.append(f"[[{header}]]")
+                    emit(item, name)
+
+    emit(data, ())
+    return "\n".join(lines).lstrip("\n") + "\n"

@@ -1,0 +1,1 @@
+"""Synthetic scenes with known truth: sensors, terrain, points and rendered images."""

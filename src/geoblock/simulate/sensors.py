@@ -1,0 +1,528 @@
+"""Simulated satellites: a true and an on-board :class:`~geoblock.models.linescan.LinescanModel`.
+
+:func:`simulate_sensor` turns an :class:`OrbitSensorSpec` (orbit, viewing angles, GSD, image
+shape, line period, attitude jitter, on-board error budget, seed) into a
+:class:`SimulatedSensor`:
+
+* the **true** model: a circular Keplerian orbit propagated in an inertial frame and rotated
+  to ECEF with the Earth's rotation (ECEF positions and Earth-fixed velocities), sampled every
+  ``ephemeris_step_s`` over the scene plus a margin; attitude quaternions in the orbital frame
+  sampled at ``attitude_rate_hz`` with the requested roll and pitch plus a sinusoidal jitter;
+  a linear array of detectors whose focal-plane tangents give the requested GSD at nadir;
+  row times centred on the scene centre, which the image centre sees at the centre height;
+* the **on-board** model: the same with the ephemeris and attitude a real satellite would
+  report: position bias and drift in the orbital frame and attitude bias and drift (no
+  jitter: it is not observed), drawn from the seeded RNG and scaled so that the on-board
+  geolocation error has the requested RMSE (Teo et al. Table II: 6-38 m per axis for
+  SPOT-5), with a requested share of along-track drift growing with the distance from the
+  image centre (Aguilar et al., QuickBird basic imagery).
+
+:func:`onboard_error` measures the on-board model's ground error against the true model.
+
+Presets (plain :class:`OrbitSensorSpec` instances): :data:`SPOT5_STRIPS` (Teo et al.'s three
+strips), :data:`QUICKBIRD` (Aguilar et al.), :data:`SPOT1A` (Chen & Lee), and small variants
+(``*_SMALL``: image shape divided and GSD multiplied by the same factor, same footprint) that
+build in a fraction of a second. Everything is deterministic for a given ``seed``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from geoblock import coords
+from geoblock.errors import GeoblockError
+from geoblock.models.linescan import (
+    Attitude,
+    Ephemeris,
+    LinescanModel,
+    LineTimes,
+    LookDirections,
+    matrix_to_quaternion,
+    orbital_frame,
+    rotation_xyz,
+)
+from geoblock.typing import Float64Array
+
+__all__ = [
+    "EARTH_ROTATION_RAD_S",
+    "GM_M3_S2",
+    "QUICKBIRD",
+    "QUICKBIRD_SMALL",
+    "SPOT1A",
+    "SPOT1A_SMALL",
+    "SPOT5_STRIPS",
+    "SPOT5_STRIPS_SMALL",
+    "GroundError",
+    "OnboardErrors",
+    "OrbitSensorSpec",
+    "SimulatedSensor",
+    "incidence_angle",
+    "onboard_error",
+    "simulate_sensor",
+]
+
+#: Earth's gravitational constant (WGS84), m^3/s^2.
+GM_M3_S2 = 3.986004418e14
+#: Earth's rotation rate (WGS84), rad/s.
+EARTH_ROTATION_RAD_S = 7.292115e-5
+
+
+@dataclass(frozen=True)
+class OrbitSensorSpec:
+    """Orbit, viewing geometry, detector and on-board error budget of a simulated scene.
+
+    Parameters
+    ----------
+    name : str
+        Label (``"spot5-strip1"``).
+    altitude_m : float
+        Orbit altitude above the equatorial radius, metres (circular orbit).
+    inclination_deg : float
+        Orbit inclination, degrees (> 90: retrograde, sun-synchronous).
+    ascending : bool
+        Whether the satellite flies northwards over the scene.
+    centre_lon, centre_lat : float
+        Scene centre, degrees; the image centre sees it at ``centre_h``.
+    centre_h : float
+        Height of the scene centre above the ellipsoid, metres.
+    gsd_m : float
+        Ground sample distance at nadir, metres (the across-track detector pitch is
+        ``gsd_m / altitude_m`` radians); off nadir the ground pixels grow (Teo et al.'s strip 3
+        at -14.8 degrees: 2.67 m against 2.52 m).
+    shape : (int, int)
+        ``(rows, cols)``.
+    incidence_deg : float, optional
+        Signed incidence angle at the scene centre (angle between the local vertical and the
+        direction to the satellite), degrees; positive looks to the left of the flight
+        direction (a positive roll). Overrides ``roll_deg``.
+    roll_deg : float
+        Off-nadir roll about the flight direction, degrees (used when ``incidence_deg`` is
+        None); positive looks left.
+    pitch_deg : float
+        Pitch about the across-track axis, degrees; positive looks forward.
+    line_period_s : float, optional
+        Seconds per row; default ``gsd_m`` / ground speed of the nadir point (square pixels
+        at nadir).
+    jitter_amplitude_rad : float
+        Amplitude of the sinusoidal attitude jitter on roll, pitch and yaw, radians.
+    jitter_frequency_hz : float
+        Its frequency, Hz (random phase per axis).
+    onboard_rmse_m : float
+        Requested 2-D RMSE of the on-board geolocation over the scene (at ``centre_h``), m.
+    onboard_drift_share : float
+        Share of ``onboard_rmse_m**2`` due to the along-track drift (position and pitch
+        rates: error growing with the distance from the image centre), in [0, 1).
+    ephemeris_step_s : float
+        Ephemeris sampling interval, seconds.
+    attitude_rate_hz : float
+        Attitude sampling rate, Hz.
+    margin_s : float
+        Time covered by ephemeris and attitude beyond each end of the image, seconds.
+    epoch : str
+        ISO-8601 UTC time of the scene centre.
+    seed : int
+        Seed of the jitter phases and the on-board errors.
+    """
+
+    name: str
+    altitude_m: float
+    inclination_deg: float
+    ascending: bool
+    centre_lon: float
+    centre_lat: float
+    gsd_m: float
+    shape: tuple[int, int]
+    incidence_deg: float | None = None
+    roll_deg: float = 0.0
+    pitch_deg: float = 0.0
+    centre_h: float = 0.0
+    line_period_s: float | None = None
+    jitter_amplitude_rad: float = 0.0
+    jitter_frequency_hz: float = 1.0
+    onboard_rmse_m: float = 20.0
+    onboard_drift_share: float = 0.1
+    ephemeris_step_s: float = 4.0
+    attitude_rate_hz: float = 8.0
+    margin_s: float = 12.0
+    epoch: str = "2003-06-21T02:30:00Z"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        def need(ok: bool, field: str, message: str) -> None:
+            if not ok:
+                raise GeoblockError(f"OrbitSensorSpec.{field}: {message} "
+                                    f"(got {getattr(self, field)!r})")
+
+        need(self.altitude_m > 100e3, "altitude_m", "must be > 100 km")
+        need(0 < self.inclination_deg < 180, "inclination_deg", "must be in (0, 180)")
+        lim = min(self.inclination_deg, 180 - self.inclination_deg)
+        need(abs(self.centre_lat) < lim, "centre_lat",
+             f"an orbit inclined {self.inclination_deg} deg does not fly over |lat| >= {lim}")
+        need(self.gsd_m > 0, "gsd_m", "must be > 0")
+        need(len(self.shape) == 2 and min(self.shape) >= 2, "shape", "must be (rows, cols) >= 2")
+        need(self.line_period_s is None or self.line_period_s > 0, "line_period_s", "must be > 0")
+        need(self.incidence_deg is None or abs(self.incidence_deg) < 60, "incidence_deg",
+             "must be within +-60 degrees")
+        need(abs(self.roll_deg) < 45 and abs(self.pitch_deg) < 45, "roll_deg",
+             "roll and pitch must be within +-45 degrees")
+        need(self.jitter_amplitude_rad >= 0 and self.jitter_frequency_hz > 0,
+             "jitter_amplitude_rad", "jitter amplitude must be >= 0 and frequency > 0")
+        need(self.onboard_rmse_m >= 0, "onboard_rmse_m", "must be >= 0")
+        need(0 <= self.onboard_drift_share < 1, "onboard_drift_share", "must be in [0, 1)")
+        need(self.ephemeris_step_s > 0 and self.attitude_rate_hz > 0 and self.margin_s > 0,
+             "ephemeris_step_s", "sampling steps and margin must be > 0")
+
+    def replace(self, **changes) -> OrbitSensorSpec:
+        """A copy with some fields changed (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)
+
+    def scaled(self, factor: float) -> OrbitSensorSpec:
+        """The same footprint with ``factor`` times fewer rows and columns and a ``factor``
+        times larger GSD (and line period): a small, fast variant of a scene."""
+        rows, cols = self.shape
+        return self.replace(
+            name=f"{self.name}-small", gsd_m=self.gsd_m * factor,
+            shape=(max(2, round(rows / factor)), max(2, round(cols / factor))),
+            line_period_s=None if self.line_period_s is None else self.line_period_s * factor,
+        )
+
+    @property
+    def orbit_radius_m(self) -> float:
+        """Radius of the circular orbit, metres."""
+        return coords.WGS84_A + self.altitude_m
+
+    @property
+    def mean_motion_rad_s(self) -> float:
+        """Angular rate of the satellite on its orbit, rad/s."""
+        return math.sqrt(GM_M3_S2 / self.orbit_radius_m**3)
+
+    @property
+    def ground_speed_m_s(self) -> float:
+        """Speed of the nadir point on a sphere of the equatorial radius (inertial), m/s."""
+        return self.mean_motion_rad_s * coords.WGS84_A
+
+    @property
+    def line_period(self) -> float:
+        """The line period in use, seconds."""
+        if self.line_period_s is not None:
+            return float(self.line_period_s)
+        return self.gsd_m / self.ground_speed_m_s
+
+    @property
+    def nominal_roll_rad(self) -> float:
+        """Roll giving ``incidence_deg`` at the centre on a sphere (or ``roll_deg``), rad."""
+        if self.incidence_deg is None:
+            return math.radians(self.roll_deg)
+        ratio = coords.WGS84_A / self.orbit_radius_m
+        return math.asin(ratio * math.sin(math.radians(self.incidence_deg)))
+
+
+class OnboardErrors(NamedTuple):
+    """The errors of the on-board ephemeris and attitude (on-board minus true).
+
+    Position in the orbital frame (along, across, radial up), attitude as rotations about the
+    sensor axes (roll, pitch, yaw) right-multiplied to the true attitude; drifts per second of
+    time from the image centre.
+    """
+
+    position_bias_m: Float64Array
+    position_drift_m_s: Float64Array
+    attitude_bias_rad: Float64Array
+    attitude_drift_rad_s: Float64Array
+
+
+class GroundError(NamedTuple):
+    """On-board minus true ground positions over an image grid, metres."""
+
+    row: Float64Array
+    """(n, n) image rows of the grid."""
+    col: Float64Array
+    """(n, n) image columns."""
+    de: Float64Array
+    """(n, n) east error, metres."""
+    dn: Float64Array
+    """(n, n) north error, metres."""
+    mean_e: float
+    mean_n: float
+    rmse_e: float
+    rmse_n: float
+    rmse: float
+    """2-D RMSE, ``sqrt(rmse_e**2 + rmse_n**2)``."""
+
+
+@dataclass(frozen=True)
+class SimulatedSensor:
+    """A simulated scene's sensor: the true model, the on-board model and how they differ."""
+
+    spec: OrbitSensorSpec
+    true_model: LinescanModel
+    onboard_model: LinescanModel
+    errors: OnboardErrors
+    roll_rad: float
+    """The roll used (giving the requested incidence at the centre)."""
+
+    def onboard_error(self, n: int = 9) -> GroundError:
+        """:func:`onboard_error` of this scene at the scene centre's height."""
+        return onboard_error(self.true_model, self.onboard_model, n=n, h=self.spec.centre_h)
+
+
+# ================================================================================ orbit
+def _orbit_ecef(spec: OrbitSensorSpec, t: np.ndarray, u0: float, raan: float):
+    """ECEF positions (N, 3) and Earth-fixed velocities (N, 3) of the circular orbit at t."""
+    r, n = spec.orbit_radius_m, spec.mean_motion_rad_s
+    inc = math.radians(spec.inclination_deg)
+    u = u0 + n * t
+    cu, su = np.cos(u), np.sin(u)
+    co, so = math.cos(raan), math.sin(raan)
+    ci, si = math.cos(inc), math.sin(inc)
+    # inertial frame coinciding with ECEF at t = 0
+    p_i = r * np.stack([cu * co - su * ci * so, cu * so + su * ci * co, su * si], axis=-1)
+    v_i = r * n * np.stack([-su * co - cu * ci * so, -su * so + cu * ci * co, cu * si], axis=-1)
+    theta = EARTH_ROTATION_RAD_S * t
+    c, s = np.cos(theta), np.sin(theta)
+
+    def to_ecef(v):  # rotate by -theta about z
+        return np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
+
+    p = to_ecef(p_i)
+    omega = np.array([0.0, 0.0, EARTH_ROTATION_RAD_S])
+    v = to_ecef(v_i) - np.cross(omega, p)
+    return p, v
+
+
+def _orbit_elements(spec: OrbitSensorSpec, lon: float, lat: float) -> tuple[float, float]:
+    """Argument of latitude at t = 0 and RAAN putting the nadir at geocentric (lon, lat)."""
+    inc = math.radians(spec.inclination_deg)
+    phi = math.atan((1 - coords.WGS84_E2) * math.tan(math.radians(lat)))  # geocentric
+    s = max(-1.0, min(1.0, math.sin(phi) / math.sin(inc)))
+    u0 = math.asin(s)
+    # ascending: d(lat)/dt > 0 <=> cos(u) sin(i) > 0
+    if spec.ascending != (math.cos(u0) > 0):
+        u0 = math.pi - u0
+    raan = math.radians(lon) - math.atan2(math.sin(u0) * math.cos(inc), math.cos(u0))
+    return u0, raan
+
+
+def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: float,
+           phases: np.ndarray, errors: OnboardErrors | None) -> LinescanModel:
+    """The model of the spec with the nadir at t = 0 over (nadir_lon, nadir_lat)."""
+    rows, cols = spec.shape
+    period = spec.line_period
+    half = 0.5 * rows * period + spec.margin_s
+    n_eph = math.ceil(half / spec.ephemeris_step_s)
+    t_eph = spec.ephemeris_step_s * np.arange(-n_eph, n_eph + 1, dtype=np.float64)
+    u0, raan = _orbit_elements(spec, nadir_lon, nadir_lat)
+    pos, vel = _orbit_ecef(spec, t_eph, u0, raan)
+    step_att = 1.0 / spec.attitude_rate_hz
+    n_att = math.ceil(half / step_att)
+    t_att = step_att * np.arange(-n_att, n_att + 1, dtype=np.float64)
+    pitch = math.radians(spec.pitch_deg)
+    if errors is None:
+        w = 2 * math.pi * spec.jitter_frequency_hz
+        jit = spec.jitter_amplitude_rad * np.sin(w * t_att[:, None] + phases[None, :])
+        angles = np.array([roll, pitch, 0.0]) + jit
+        r_att = rotation_xyz(angles[:, 0], angles[:, 1], angles[:, 2])
+    else:
+        err_pos = errors.position_bias_m + t_eph[:, None] * errors.position_drift_m_s
+        m_orb = orbital_frame(pos, vel)
+        err_pos = err_pos * np.array([1.0, 1.0, -1.0])  # radial up = -z_o
+        pos = pos + np.einsum("nij,nj->ni", m_orb, err_pos)
+        vel = vel + np.einsum("nij,j->ni", m_orb, errors.position_drift_m_s * [1.0, 1.0, -1.0])
+        err_att = errors.attitude_bias_rad + t_att[:, None] * errors.attitude_drift_rad_s
+        r_att = rotation_xyz(roll, pitch, 0.0) @ rotation_xyz(
+            err_att[:, 0], err_att[:, 1], err_att[:, 2])
+    c = np.arange(cols) - (cols - 1) / 2.0
+    look = LookDirections.from_tan_angles(np.zeros(cols), c * spec.gsd_m / spec.altitude_m)
+    return LinescanModel(
+        (rows, cols), Ephemeris(t_eph, pos, vel),
+        Attitude(t_att, matrix_to_quaternion(r_att), frame="orbital"), look,
+        LineTimes((rows - 1) / 2.0, 0.0, period), epoch=spec.epoch,
+    )
+
+
+def incidence_angle(model: LinescanModel, row: float, col: float, h: float = 0.0) -> float:
+    """Signed incidence angle (degrees) at an image point: the angle between the local
+    vertical and the direction to the satellite, positive when the satellite is to the right
+    of the ground point looking along the flight direction (the sensor looks left)."""
+    g = model.backproject(row, col, h)
+    p_sat, v_sat, _ = model.sensor_state(row)
+    ground = np.stack(coords.geodetic_to_ecef(*g), axis=-1)
+    to_sat = p_sat - ground
+    up = coords.enu_rotation(g.lon, g.lat)[2]
+    angle = math.degrees(math.acos(float(np.dot(up, to_sat) / np.linalg.norm(to_sat))))
+    # the satellite is to the right of the ground point when the track direction crossed
+    # with the ground->satellite vector points down
+    side = float(np.dot(np.cross(v_sat, to_sat), up))
+    return angle if side < 0 else -angle
+
+
+# ================================================================================ simulation
+def _centred(spec: OrbitSensorSpec, phases: np.ndarray) -> tuple[LinescanModel, float, tuple]:
+    """The true model with the image centre on the scene centre and the requested incidence."""
+    rows, cols = spec.shape
+    rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
+    frame = coords.LocalFrame(spec.centre_lon, spec.centre_lat, spec.centre_h)
+    roll = spec.nominal_roll_rad
+    nadir = (spec.centre_lon, spec.centre_lat)
+    model = None
+    for _ in range(6):
+        model = _build(spec, nadir[0], nadir[1], roll, phases, None)
+        g = model.backproject(rc, cc, spec.centre_h)
+        e, n, _ = frame.from_geodetic(g.lon, g.lat, g.h)
+        # move the nadir by the miss (the mapping is nearly a translation)
+        shifted = frame.to_geodetic(-float(e), -float(n), 0.0)
+        nadir = (nadir[0] + float(shifted.lon) - spec.centre_lon,
+                 nadir[1] + float(shifted.lat) - spec.centre_lat)
+        if spec.incidence_deg is not None and spec.incidence_deg != 0.0:
+            got = incidence_angle(model, rc, cc, spec.centre_h)
+            roll *= math.sin(math.radians(spec.incidence_deg)) / math.sin(math.radians(got))
+        if math.hypot(float(e), float(n)) < 1e-3 * spec.gsd_m:
+            break
+    model = _build(spec, nadir[0], nadir[1], roll, phases, None)
+    return model, roll, nadir
+
+
+def _with_errors(spec, nadir, roll, phases, errors) -> LinescanModel:
+    return _build(spec, nadir[0], nadir[1], roll, phases, errors)
+
+
+def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
+    """The true and the on-board model of a spec (deterministic for ``spec.seed``).
+
+    Parameters
+    ----------
+    spec : OrbitSensorSpec
+
+    Returns
+    -------
+    SimulatedSensor
+        ``true_model`` (parameters zero), ``onboard_model`` (parameters zero, erroneous
+        ephemeris and attitude) and the ``errors`` applied.
+    """
+    rng = np.random.default_rng(spec.seed)
+    phases = rng.uniform(0.0, 2 * math.pi, 3)
+    true_model, roll, nadir = _centred(spec, phases)
+    zero = np.zeros(3)
+    # error shapes: biases of comparable ground effect, random directions; drift along track
+    alt = spec.altitude_m
+    pos_dir = rng.normal(size=3) * [1.0, 1.0, 0.3]
+    att_dir = rng.normal(size=3) * np.array([1.0, 1.0, 0.3]) / alt
+    drift_sign = rng.choice([-1.0, 1.0], size=2)
+    half_s = 0.5 * spec.shape[0] * spec.line_period
+    shape_bias = OnboardErrors(pos_dir, zero, att_dir, zero)
+    # along-track position drift plus a pitch drift, 1 m at the image's ends
+    shape_drift = OnboardErrors(zero, np.array([drift_sign[0], 0.0, 0.0]) * 0.5 / half_s, zero,
+                                np.array([0.0, drift_sign[1], 0.0]) * 0.5 / half_s / alt)
+    target = spec.onboard_rmse_m
+    # the ground error is linear in the error sizes: e = e0 + k_b e_b + k_d e_d, with e0 the
+    # error of error-free on-board data (the unobserved jitter)
+    zero_errors = OnboardErrors(zero, zero, zero, zero)
+    e_0 = _errors_of(spec, true_model, _with_errors(spec, nadir, roll, phases, zero_errors))
+    e_b = _errors_of(spec, true_model,
+                     _with_errors(spec, nadir, roll, phases, shape_bias)) - e_0
+    e_d = _errors_of(spec, true_model,
+                     _with_errors(spec, nadir, roll, phases, shape_drift)) - e_0
+
+    def dot(a, b):
+        return float(np.mean(np.sum(a * b, axis=-1)))
+
+    base = dot(e_0, e_0)
+    if target**2 <= base:
+        scale_b = scale_d = 0.0
+    else:
+        scale_d = math.sqrt(spec.onboard_drift_share * (target**2 - base) / dot(e_d, e_d))
+        # |e0 + k e_b + scale_d e_d|^2 = target^2, for k
+        qa = dot(e_b, e_b)
+        qb = dot(e_b, e_0) + scale_d * dot(e_b, e_d)
+        qc = base + 2 * scale_d * dot(e_d, e_0) + scale_d**2 * dot(e_d, e_d) - target**2
+        scale_b = (-qb + math.sqrt(qb * qb - qa * qc)) / qa
+    errors = OnboardErrors(
+        scale_b * shape_bias.position_bias_m, scale_d * shape_drift.position_drift_m_s,
+        scale_b * shape_bias.attitude_bias_rad, scale_d * shape_drift.attitude_drift_rad_s,
+    )
+    onboard = _with_errors(spec, nadir, roll, phases, errors)
+    return SimulatedSensor(spec, true_model, onboard, errors, roll)
+
+
+def _errors_of(spec: OrbitSensorSpec, true: LinescanModel, onboard: LinescanModel) -> np.ndarray:
+    err = onboard_error(true, onboard, h=spec.centre_h)
+    return np.stack([err.de.ravel(), err.dn.ravel()], axis=-1)
+
+
+def onboard_error(true: LinescanModel, onboard: LinescanModel, n: int = 9,
+                  h: float = 0.0) -> GroundError:
+    """Ground error of an on-board model against the true one over an image grid.
+
+    Both models backproject an ``n x n`` grid of image points (pixel edge to pixel edge) at
+    height ``h``; the error is the on-board point minus the true point in the true point's
+    local east/north frame.
+
+    Parameters
+    ----------
+    true, onboard : SensorModel
+        Models of the same image.
+    n : int
+        Grid points per side.
+    h : float
+        Height above the ellipsoid, metres.
+
+    Returns
+    -------
+    GroundError
+    """
+    rows, cols = true.shape
+    r, c = np.meshgrid(np.linspace(-0.5, rows - 0.5, n), np.linspace(-0.5, cols - 0.5, n),
+                       indexing="ij")
+    g_true = true.backproject(r, c, h)
+    g_ob = onboard.backproject(r, c, h)
+    de, dn, _ = coords.enu_offsets(*g_true, *g_ob)
+    rmse_e, rmse_n = float(np.sqrt(np.mean(de**2))), float(np.sqrt(np.mean(dn**2)))
+    return GroundError(r, c, de, dn, float(np.mean(de)), float(np.mean(dn)), rmse_e, rmse_n,
+                       math.hypot(rmse_e, rmse_n))
+
+
+# ================================================================================ presets
+#: Teo et al.'s three SPOT-5 supermode strips over Taiwan (Table I: 2.52/2.52/2.67 m GSD,
+#: incidence 5.21, 5.65, -14.76 deg, 24000 x 24000 px, 10-15 % overlap; Table II case I on-board
+#: RMSE 2-D 33.6, 12.0 and 42.3 m). Orbit 832 km, 98.7 deg, descending (10:30 local time).
+SPOT5_STRIPS: tuple[OrbitSensorSpec, ...] = tuple(
+    OrbitSensorSpec(
+        name=f"spot5-strip{k + 1}", altitude_m=832e3, inclination_deg=98.7, ascending=False,
+        centre_lon=lon, centre_lat=23.85, gsd_m=2.5, shape=(24000, 24000),
+        incidence_deg=inc, jitter_amplitude_rad=5e-7, jitter_frequency_hz=1.0,
+        onboard_rmse_m=rmse, onboard_drift_share=0.1, epoch=epoch, seed=k + 1,
+    )
+    for k, (lon, inc, rmse, epoch) in enumerate([
+        (120.45, 5.2, 33.6, "2003-06-21T02:40:00Z"),
+        (120.96, 5.7, 12.0, "2003-05-31T02:40:00Z"),
+        (121.47, -14.8, 42.3, "2003-07-01T02:40:00Z"),
+    ])
+)
+#: QuickBird basic imagery like Aguilar et al.'s (0.62 m GSD, 450 km, 97.2 deg, 8 deg
+#: off-nadir, ~17 x 17 km) over Almeria, Spain; on-board 2-D RMSE 15 m with a 40 % share of
+#: along-track drift growing with the distance from the image centre.
+QUICKBIRD = OrbitSensorSpec(
+    name="quickbird", altitude_m=450e3, inclination_deg=97.2, ascending=False,
+    centre_lon=-2.45, centre_lat=36.83, gsd_m=0.62, shape=(27552, 27424), roll_deg=8.0,
+    jitter_amplitude_rad=2e-7, jitter_frequency_hz=2.0, onboard_rmse_m=15.0,
+    onboard_drift_share=0.4, ephemeris_step_s=2.0, attitude_rate_hz=16.0,
+    epoch="2004-08-06T11:05:00Z", seed=11,
+)
+#: SPOT-1A-like (Chen & Lee): 10 m GSD, 6000 x 6000 px, 1.5 ms line period, 832 km,
+#: 98.7 deg; on-board 2-D RMSE 30 m.
+SPOT1A = OrbitSensorSpec(
+    name="spot1a", altitude_m=832e3, inclination_deg=98.7, ascending=False,
+    centre_lon=120.95, centre_lat=24.1, gsd_m=10.0, shape=(6000, 6000), line_period_s=1.5e-3,
+    incidence_deg=10.0, onboard_rmse_m=30.0, onboard_drift_share=0.1,
+    epoch="1988-03-15T02:40:00Z", seed=21,
+)
+#: Small variants: 40x (SPOT-5: 600 x 600 px at 100 m), 40x (QuickBird: ~690 x 686 px at
+#: 24.8 m) and 10x (SPOT-1A: 600 x 600 px at 100 m) fewer rows and columns, same footprints.
+SPOT5_STRIPS_SMALL: tuple[OrbitSensorSpec, ...] = tuple(s.scaled(40) for s in SPOT5_STRIPS)
+QUICKBIRD_SMALL = QUICKBIRD.scaled(40)
+SPOT1A_SMALL = SPOT1A.scaled(10)

@@ -1,0 +1,165 @@
+"""Block files: read/write round trip, validation errors naming the field, and the TOML writer."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoblock.errors import GeoblockIOError
+from geoblock.io import Block, BlockDem, BlockImage, read_block, write_block
+from geoblock.io.blocks import BlockFileError, dumps_toml
+
+EXAMPLE = """\
+version = 1
+name = "three strips"
+method = "mba"
+
+[points]
+ground = "ground.csv"
+image = "pts/image.csv"
+truth = "/abs/truth.csv"
+
+[dem]
+path = "dem.tif"
+vertical = "geoid"
+geoid = "../grids/egm96_15.gtx"
+
+[options]
+dem_control = true
+max_iterations = 20
+tolerance = 1e-6
+weights = [1.0, 2.5]
+[options.collocation]
+filter_ratio = 0.2
+
+[outputs]
+directory = "out"
+
+[[images]]
+id = "strip1"
+model = "strip1.json"
+raster = "strip1.tif"
+parameters = "dg"
+sigmas = { dp_along = 10.0, roll_bias = 1e-5 }
+
+[[images]]
+id = "strip2"
+model = "models/strip2.json"
+"""
+
+
+def test_read_example_resolves_paths_relative_to_the_file(tmp_path):
+    path = tmp_path / "block.toml"
+    path.write_text(EXAMPLE)
+    block = read_block(path)
+    assert block.name == "three strips" and block.method == "mba"
+    assert [im.id for im in block.images] == ["strip1", "strip2"]
+    assert block.images[0].model == tmp_path / "strip1.json"
+    assert block.images[0].raster == tmp_path / "strip1.tif"
+    assert block.images[0].parameters == "dg"
+    assert dict(block.images[0].sigmas) == {"dp_along": 10.0, "roll_bias": 1e-5}
+    assert block.images[1].raster is None and block.images[1].parameters == "default"
+    assert block.image_points == tmp_path / "pts" / "image.csv"
+    assert block.truth == Path("/abs/truth.csv")
+    assert block.dem == BlockDem(str(tmp_path / "dem.tif"), "geoid",
+                                 (tmp_path / ".." / "grids" / "egm96_15.gtx").resolve())
+    assert block.options["dem_control"] is True and block.options["weights"] == (1.0, 2.5)
+    assert block.options["collocation"]["filter_ratio"] == 0.2
+    assert block.outputs["directory"] == tmp_path / "out"
+    with pytest.raises(TypeError):
+        block.options["x"] = 1  # read-only
+    assert block.image("strip2").model == tmp_path / "models" / "strip2.json"
+
+
+def test_write_read_round_trip_and_relative_paths(tmp_path):
+    src = tmp_path / "a" / "block.toml"
+    src.parent.mkdir()
+    src.write_text(EXAMPLE)
+    block = read_block(src)
+    out = tmp_path / "b" / "copy.toml"
+    out.parent.mkdir()
+    assert write_block(out, block) == out
+    assert read_block(out) == block
+    text = out.read_text()
+    assert 'model = "../a/strip1.json"' in text  # relative to the new file
+    assert 'path = "../a/dem.tif"' in text
+    assert list(out.parent.iterdir()) == [out]  # no temporary file left
+    # the written file is plain TOML
+    assert tomllib.loads(text)["images"][0]["sigmas"] == {"dp_along": 10.0, "roll_bias": 1e-5}
+
+
+def test_constant_dem_and_minimal_block(tmp_path):
+    block = Block((BlockImage("a", tmp_path / "a.json"),), "rpcv0", dem=BlockDem("const:250"))
+    path = write_block(tmp_path / "min.toml", block)
+    back = read_block(path)
+    assert back == block and back.dem.source == "const:250"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("method = 'mba'\n", r"required field 'images' is missing"),
+        ("[[images]]\nid = 'a'\nmodel = 'a.json'\n", r"required field 'method' is missing"),
+        ("method = 'mba'\n[[images]]\nmodel = 'a.json'\n", r"images\[0\]: the required field 'id'"),
+        ("method = 'mba'\n[[images]]\nid = 'a'\nmodel = 3\n", r"'model' must be a string, got 3"),
+        ("method = 'mba'\n[[images]]\nid = 'a'\nmodel = 'a'\nbogus = 1\n",
+         r"images\[0\]: unknown field\(s\) \['bogus'\]"),
+        ("method = 'mba'\n[[images]]\nid = 'a'\nmodel = 'a'\n[[images]]\nid = 'a'\nmodel = 'b'\n",
+         r"'images\[1\]\.id': duplicate image id 'a'"),
+        ("method = 'MBA!'\n[[images]]\nid = 'a'\nmodel = 'a'\n", r"'method' must be a lower-case"),
+        ('method = "mba\\n"\n[[images]]\nid = "a"\nmodel = "a"\n', r"'method' must be a lower-case"),
+        ("version = 2\nmethod = 'mba'\n", r"'version' 2 is not supported"),
+        ("method = 'mba'\n[dem]\nvertical = 'geoid'\n[[images]]\nid = 'a'\nmodel = 'a'\n",
+         r"dem: the required field 'path' is missing"),
+        ("method = 'mba'\n[dem]\npath = 'd.tif'\nvertical = 'egm'\n[[images]]\nid = 'a'\n"
+         "model = 'a'\n", r"'dem.vertical' must be 'ellipsoid' or 'geoid'"),
+        ("method = 'mba'\n[[images]]\nid = 'a'\nmodel = 'a'\nsigmas = { roll = 'x' }\n",
+         r"'sigmas.roll' must be a number"),
+        ("method = 'mba'\n[points]\nground = true\n[[images]]\nid = 'a'\nmodel = 'a'\n",
+         r"points: 'ground' must be a string, got True"),
+        ("method = 'mba'\nextra = 1\n[[images]]\nid = 'a'\nmodel = 'a'\n",
+         r"unknown field\(s\) \['extra'\]"),
+        ("method = 'mba\n", r"not a valid TOML file"),
+    ],
+)
+def test_invalid_block_files_name_the_field(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(BlockFileError, match=message) as info:
+        read_block(path)
+    assert str(path) in str(info.value)
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(GeoblockIOError, match="cannot read block file"):
+        read_block(tmp_path / "nope.toml")
+    block = Block((BlockImage("a", tmp_path / "a.json"),), "mba")
+    with pytest.raises(GeoblockIOError, match="does not exist"):
+        write_block(tmp_path / "no" / "b.toml", block)
+
+
+# ---------------------------------------------------------------------------- the TOML writer
+keys = st.text(min_size=1, max_size=12)
+scalars = (st.text(max_size=20) | st.booleans() | st.integers(-(2**63), 2**63 - 1)
+           | st.floats(allow_nan=False))
+values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4)
+                      | st.dictionaries(keys, inner, max_size=4), max_leaves=12)
+documents = st.dictionaries(keys, values | st.lists(st.dictionaries(keys, values, max_size=3),
+                                                    min_size=1, max_size=3), max_size=6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(documents)
+def test_dumps_toml_round_trips_through_tomllib(doc):
+    assert tomllib.loads(dumps_toml(doc)) == doc
+
+
+def test_dumps_toml_non_finite_floats():
+    back = tomllib.loads(dumps_toml({"a": math.inf, "b": -math.inf, "c": math.nan, "d": 1e300}))
+    assert back["a"] == math.inf and back["b"] == -math.inf and math.isnan(back["c"])
+    assert back["d"] == 1e300
