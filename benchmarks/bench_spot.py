@@ -1,0 +1,88 @@
+"""Speed of the SPOT Chen & Lee model (geoblock-spot): project and backproject of 10^6 points.
+
+Run: ``python benchmarks/bench_spot.py [--quick]``. The model is Chen & Lee's (1993) Table 1
+orientation on a SPOT 1A 6000 x 6000 scene (``ChenLeeModel.table1()``). Image points are
+uniform over the image (pixel edges included) with heights uniform in -500..9000 m; they are
+backprojected, and the ground points so obtained are projected back. Prints one line per case:
+best-of-N wall time, throughput, the peak of memory allocated by numpy during one call
+(tracemalloc), and for the directions the round-trip error. Nothing here is asserted; the
+figures go into the closing notes of the issues that change them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import tracemalloc
+import warnings
+
+import numpy as np
+from geoblock_spot.chenlee import ChenLeeModel
+from geoblock_spot.fit import fit_chenlee
+
+import geoblock
+from geoblock.adjust import ControlPoints, resect
+from geoblock.testing.synthetic import ConstantVelocityPushbroom
+
+
+def measure(label, func, n_points, repeat=3):
+    func()  # warm up
+    best = min(_timed(func) for _ in range(repeat))
+    tracemalloc.start()
+    func()
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    print(
+        f"{label:58s} {best * 1e3:9.2f} ms  {n_points / best / 1e6:8.3f} Mpt/s  "
+        f"peak {peak / 2**20:7.1f} MiB ({peak / max(n_points, 1):6.0f} B/pt)"
+    )
+    return best
+
+
+def _timed(func):
+    t0 = time.perf_counter()
+    func()
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="10x fewer points")
+    args = parser.parse_args()
+    scale = 10 if args.quick else 1
+    warnings.simplefilter("error")
+    rng = np.random.default_rng(0)
+    model = ChenLeeModel.table1()
+    print(f"geoblock {geoblock.__version__}, numpy {np.__version__}; {model!r}")
+
+    n = 1_000_000 // scale
+    row, col = rng.uniform(-0.5, 5999.5, n), rng.uniform(-0.5, 5999.5, n)
+    h = rng.uniform(-500.0, 9000.0, n)
+    g = model.backproject(row, col, h)
+    r2, c2 = model.project(g.lon, g.lat, g.h)
+    err = np.hypot(r2 - row, c2 - col)
+    measure(f"chen-lee backproject, ray/height surface ({n} pts)",
+            lambda: model.backproject(row, col, h), n)
+    measure(f"chen-lee project, Newton on t ({n} pts)", lambda: model.project(g.lon, g.lat, g.h), n)
+    print(f"  round trip project(backproject): max {err.max():.2e} px, "
+          f"median {np.median(err):.2e} px")
+    m = 100_000 // scale
+    measure(f"chen-lee partials_ground, analytic ({m} pts)",
+            lambda: model.partials_ground(g.lon[:m], g.lat[:m], g.h[:m]), m)
+    measure(f"chen-lee partials_parameters, analytic ({m} pts)",
+            lambda: model.partials_parameters(g.lon[:m], g.lat[:m], g.h[:m]), m)
+
+    k = 21
+    mba = model.mba(350.0)
+    gcps = ControlPoints([str(i) for i in range(k)], g.lon[:k], g.lat[:k], g.h[:k],
+                         row[:k] + 3.0, col[:k] - 2.0, sigma_row=0.2, sigma_col=0.2)
+    measure(f"resect mba set (19 parameters, {k} GCPs)", lambda: resect(mba, gcps), k, repeat=3)
+    push = ConstantVelocityPushbroom.example(shape=(6000, 6000), roll=0.1)
+    fit = fit_chenlee(push)
+    print(f"  fit_chenlee to a 6000 x 6000 pushbroom: {fit.n_points} grid points, "
+          f"max {fit.max_px:.2e} px, check max {fit.check_max_px:.2e} px")
+    measure("fit_chenlee (15 x 15 x 5 grid)", lambda: fit_chenlee(push), fit.n_points, repeat=1)
+
+
+if __name__ == "__main__":
+    main()

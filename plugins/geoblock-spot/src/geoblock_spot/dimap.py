@@ -1,0 +1,796 @@
+"""Reader of DIMAP v1 ``METADATA.DIM`` files of SPOT 1-5 level 1A scenes and segments.
+
+:func:`read_dimap` parses, with :mod:`xml.etree.ElementTree`, everything the DIMAP
+line-of-sight model (:mod:`geoblock_spot.los`) and the accuracy checks need into an immutable
+:class:`SpotDimap`:
+
+* ephemeris (``Data_Strip/Ephemeris/Points/Point``: UTC time, ECEF position and velocity, m and
+  m/s), the DORIS points' ``ERROR_ESTIMATION`` (m) when present;
+* attitude: SPOT 5 ``Corrected_Attitudes`` (yaw, pitch, roll, rad) and the star-tracker
+  quaternions ``Q0..Q3``; SPOT 1-4 ``Raw_Attitudes/Aocs_Attitude`` absolute ``Angles`` and
+  ``Angular_Speeds`` (rad, rad/s), integrated by :meth:`SpotDimap.attitude_angles`;
+* look angles ``PSI_X`` / ``PSI_Y`` (rad) per detector (two detectors, first and last, for
+  SPOT 1-4; the full table for SPOT 5), line period, scene-centre time, line and column;
+* image size, the ``Dataset_Frame`` corner vertices and scene centre, the ``Tie_Point``\\ s
+  (with their height ``TIE_POINT_CRS_Z``) and the ``Simplified_Location_Model`` (the product's
+  own quadratic image <-> ground polynomials, a second description of the geometry).
+
+Conventions
+-----------
+**Pixels.** DIMAP numbers lines and columns from 1 (``Raster_CS/PIXEL_ORIGIN`` = 1) and its
+``RASTER_CS_TYPE`` ``POINT`` puts integer coordinates at pixel centres. Every row/column read
+here is converted once to geoblock's 0-based pixel centres:
+``row = DIMAP_ROW - PIXEL_ORIGIN``, ``col = DIMAP_COL - PIXEL_ORIGIN`` (and a further
+``- 0.5`` for a ``CELL`` raster, whose integers are pixel corners). ASP does the same
+(``SPOT_XML.cc``, ``read_line_times``: "Convert from 1-based to 0-based indices").
+
+**Times.** Every time is a float64 number of seconds since :attr:`SpotDimap.epoch`, the UTC
+time of the first ephemeris point (ASP's reference time, ``SPOT_XML.cc`` ``parse_xml``); the
+DIMAP time strings (``2005-03-13T05:21:07.332158``, UTC) are parsed to microseconds.
+
+**Velocities.** SPOT 5 DIMAP velocities are Earth-fixed (the time derivative of the ECEF
+positions). SPOT 1-4 DIMAP velocities are *inertial* velocities expressed on the ECEF axes:
+they differ from the derivative of the positions by ``omega x P`` (about 400 m/s). The reader
+does not trust the mission number for this: it differentiates the positions and records which
+of the two the velocities match in :attr:`SpotDimap.velocity_frame` (``"earth-fixed"`` or
+``"inertial"``), and refuses velocities that match neither. The SPOT geometry handbook builds
+its local orbital frame from the velocity *as given* (ASP ``LinescanSpotModel.cc``
+``get_local_orbital_frame``; COSI-Corr ``Spot_RSM.py``: "For SPOT1-4 spacecraft velocities are
+expressed in the Earth Centered Reference System"), which :mod:`geoblock_spot.los` reproduces.
+
+**Attitude.** The angles are those of the SPOT 123-4-5 Geometry Handbook (GAEL-P135-DOC-001,
+eq. 11): the rotation ``M = Mp Mr My`` from the navigation frame to the local orbital frame,
+used exactly as ASP (``LinescanSpotModel.cc`` ``get_look_rotation_matrix``), OSSIM
+(``ossimSpot5Model.cpp`` ``computeSatToOrbRotation``) and COSI-Corr (``Spot_RSM.py``
+``__SpotSat2NavMatrix``: ``Rx(-pitch) Ry(-roll) Rz(yaw)``, the same matrix) use them. For
+SPOT 1-4 only relative gyro data exist: the angles are the first valid absolute ``Angles``
+sample plus the time integral of the ``Angular_Speeds`` (handbook eq. 8, COSI-Corr
+``__IntegrateRotationSpeed``), by the trapezoidal rule; samples flagged ``OUT_OF_RANGE`` are
+dropped (COSI-Corr interpolates over them, which the trapezoid over the remaining samples does).
+
+Look angles (``PSI_X`` along track, ``PSI_Y`` across track, rad) give the look direction
+``normalize(-tan PSI_Y, tan PSI_X, -1)`` in the navigation frame (handbook eq. 5a; ASP
+``LinescanSpotModel.cc``; COSI-Corr ``ComputeCCDLookAngles``). SPOT 1-4 give the first and the
+last detector only; the others are interpolated linearly in detector number (COSI-Corr
+``ComputeCCDLookAngles``, OSSIM ``getInterpolatedLookAngle``).
+
+**Accuracy.** DIMAP v1 SPOT files state no location accuracy; :attr:`SpotDimap.location_accuracy_m`
+gives the mission figure (``< 50 m`` without GCPs for SPOT 5, ``350 m`` for SPOT 1-4, ESA EO
+portal "SPOT 5 description"; OSSIM uses 50 m with star tracker and 200 m without,
+``ossimSpot5Model.cpp`` ``loadSupportData``) with its source in
+:attr:`SpotDimap.location_accuracy_source`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from geoblock.errors import GeoblockIOError, ModelFormatError
+
+__all__ = [
+    "DimapFormatError",
+    "EARTH_ROTATION_RAD_S",
+    "AttitudeSamples",
+    "GroundPoint",
+    "SpotDimap",
+    "is_spot_dimap",
+    "read_dimap",
+]
+
+EARTH_ROTATION_RAD_S = 7.2921151467e-5
+"""WGS84 angular velocity of the Earth, rad/s (about ECEF +z)."""
+
+#: velocities within this many m/s of the positions' derivative are accepted
+_VELOCITY_TOLERANCE_M_S = 5.0
+
+#: mission location accuracy without ground control, metres (see the module docstring)
+_MISSION_ACCURACY_M = {1: 350.0, 2: 350.0, 3: 350.0, 4: 350.0, 5: 50.0}
+_ACCURACY_SOURCE = (
+    "not stated in DIMAP v1; mission figure without GCPs (ESA EO portal, SPOT 5 description: "
+    "'< 50 m ... instead of 350 m on SPOT 1 to 4')"
+)
+
+
+class DimapFormatError(ModelFormatError):
+    """A SPOT DIMAP file is truncated or inconsistent; the message names the file and field.
+
+    Attributes
+    ----------
+    path : str
+        The metadata file.
+    field : str
+        The DIMAP element (path below the root) at fault.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], field: str, problem: str):
+        super().__init__(f"{str(path)!r}: DIMAP field {field}: {problem}")
+        self.path = str(path)
+        self.field = field
+
+
+@dataclass(frozen=True)
+class GroundPoint:
+    """An image point with its ground position, as the product states it.
+
+    ``row, col`` are geoblock 0-based pixel centres (converted from DIMAP's 1-based numbers);
+    ``lon, lat`` degrees; ``h`` metres above the ellipsoid (``TIE_POINT_CRS_Z``; 0 for the
+    ``Dataset_Frame`` vertices, which state no height and equal the ``h = 0`` tie points).
+    """
+
+    lon: float
+    lat: float
+    h: float
+    row: float
+    col: float
+
+
+@dataclass(frozen=True, eq=False)
+class AttitudeSamples:
+    """Time-tagged yaw, pitch and roll (rad, or rad/s for angular speeds).
+
+    Attributes
+    ----------
+    time_s : ndarray, (m,)
+        Seconds since the epoch, strictly increasing.
+    angles : ndarray, (m, 3)
+        Columns yaw, pitch, roll.
+    out_of_range : ndarray of bool, (m,)
+        DIMAP's ``OUT_OF_RANGE`` flag (``Y``).
+    """
+
+    time_s: np.ndarray
+    angles: np.ndarray
+    out_of_range: np.ndarray
+
+    def valid(self) -> AttitudeSamples:
+        """The samples not flagged out of range."""
+        keep = ~self.out_of_range
+        return AttitudeSamples(self.time_s[keep], self.angles[keep], self.out_of_range[keep])
+
+
+@dataclass(frozen=True, eq=False)
+class SpotDimap:
+    """Parsed DIMAP v1 metadata of a SPOT 1-5 level 1A scene or segment.
+
+    All rows/columns are geoblock 0-based pixel centres; all times seconds since
+    :attr:`epoch`; angles radians; positions metres and velocities m/s in ECEF (EPSG:4978).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The metadata file read.
+    mission : int
+        ``MISSION_INDEX`` (1-5).
+    instrument : str
+        ``INSTRUMENT`` + ``INSTRUMENT_INDEX`` (``"HRV1"``, ``"HRG1"``, ``"HRS1"`` ...).
+    sensor_code : str
+        ``SENSOR_CODE`` (``P``, ``M``, ``A``, ``S`` ...).
+    profile : str
+        ``METADATA_PROFILE`` (``SPOTSCENE_1A``, ``SPOTSEGMENT_1A``).
+    shape : tuple of int
+        ``(NROWS, NCOLS)``.
+    epoch : str
+        ISO-8601 UTC time of the first ephemeris point (time origin).
+    line_period_s : float
+        ``LINE_PERIOD``, seconds.
+    scene_center_time_s, scene_center_row, scene_center_col : float
+        ``SCENE_CENTER_TIME`` / ``_LINE`` / ``_COL`` (0-based).
+    ephemeris_time_s : ndarray, (n,)
+    position_m, velocity_m_s : ndarray, (n, 3)
+        As in the file (see :attr:`velocity_frame`).
+    velocity_frame : str
+        ``"earth-fixed"`` or ``"inertial"`` (inertial velocity on ECEF axes; SPOT 1-4).
+    doris_used : bool
+    doris_error_m : ndarray, (k,)
+        ``ERROR_ESTIMATION`` of the DORIS points (empty if none).
+    raw_angles, angular_speeds, corrected_angles : AttitudeSamples or None
+        AOCS absolute angles, gyro angular speeds, SPOT 5 corrected attitudes.
+    quaternion_time_s : ndarray, (q,) ; quaternions : ndarray, (q, 4)
+        Star-tracker ``Q0..Q3`` as given (empty when absent; informational, not used).
+    star_tracker_used : bool or None
+        ``STAR_TRACKER_USED`` (None when absent).
+    look_detector_col : ndarray of float, (k,)
+        0-based column of each ``Look_Angles`` entry (``DETECTOR_ID - 1``).
+    psi_x, psi_y : ndarray, (k,)
+        ``PSI_X`` (along track) and ``PSI_Y`` (across track) look angles, rad.
+    vertices : tuple of GroundPoint
+        ``Dataset_Frame/Vertex`` (4 corners, ``h = 0``).
+    scene_center : GroundPoint or None
+        ``Dataset_Frame/Scene_Center``.
+    tie_points : tuple of GroundPoint
+        ``Geoposition/Geoposition_Points/Tie_Point``.
+    direct_location, reverse_location : ndarray, (2, 6) or None
+        ``Simplified_Location_Model`` coefficients (``lc``, ``pc`` rows), see
+        :meth:`simplified_image_to_ground`.
+    incidence_angle_deg, viewing_angle_deg : float
+        NaN when absent.
+    mirror_step_count : int or None
+        ``Mirror_Position/STEP_COUNT`` (SPOT 1-4 HRV mirror; already included in the look angles).
+    location_accuracy_m : float
+        Mission location accuracy without GCPs (not stated in the file; see the module notes).
+    location_accuracy_source : str
+    """
+
+    path: Path
+    mission: int
+    instrument: str
+    sensor_code: str
+    profile: str
+    shape: tuple[int, int]
+    epoch: str
+    line_period_s: float
+    scene_center_time_s: float
+    scene_center_row: float
+    scene_center_col: float
+    ephemeris_time_s: np.ndarray
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    velocity_frame: str
+    doris_used: bool
+    doris_error_m: np.ndarray
+    raw_angles: AttitudeSamples | None
+    angular_speeds: AttitudeSamples | None
+    corrected_angles: AttitudeSamples | None
+    quaternion_time_s: np.ndarray
+    quaternions: np.ndarray
+    star_tracker_used: bool | None
+    look_detector_col: np.ndarray
+    psi_x: np.ndarray
+    psi_y: np.ndarray
+    vertices: tuple[GroundPoint, ...]
+    scene_center: GroundPoint | None
+    tie_points: tuple[GroundPoint, ...]
+    direct_location: np.ndarray | None
+    reverse_location: np.ndarray | None
+    incidence_angle_deg: float
+    viewing_angle_deg: float
+    mirror_step_count: int | None
+    location_accuracy_m: float
+    location_accuracy_source: str
+
+    # ------------------------------------------------------------------ derived values
+    @property
+    def scene_width(self) -> int:
+        """Number of columns of the scene the geolocation refers to.
+
+        ``NCOLS`` unless the tie points or the scene-centre column lie beyond it, as in a
+        metadata file cropped after production (ASP's ``spot_example1.xml``: ``NCOLS`` 300,
+        tie points at column 12000): then ``2 * scene_center_col`` (DIMAP puts the scene centre
+        at column ``N/2 + 1``) or the last tie-point column + 1, whichever is larger.
+        """
+        width = self.shape[1]
+        candidates = [width]
+        if self.scene_center_col > width - 1:
+            candidates.append(int(round(2 * self.scene_center_col)))
+        candidates += [int(round(p.col)) + 1 for p in self.tie_points]
+        return max(candidates)
+
+    def attitude_angles(self) -> tuple[np.ndarray, np.ndarray, str]:
+        """The attitude samples the line-of-sight model uses.
+
+        Returns
+        -------
+        time_s : ndarray, (m,)
+            Seconds since the epoch.
+        ypr : ndarray, (m, 3)
+            Yaw, pitch, roll, rad (handbook navigation -> orbital frame angles).
+        source : str
+            ``"corrected"`` (SPOT 5 ``Corrected_Attitudes``) or ``"integrated"`` (SPOT 1-4: the
+            first valid ``Angles`` sample plus the trapezoidal integral of the valid
+            ``Angular_Speeds``, extended to the last ``Angles`` time with the last speed).
+
+        Raises
+        ------
+        DimapFormatError
+            Fewer than two valid samples.
+        """
+        if self.corrected_angles is not None:
+            att = self.corrected_angles.valid()
+            if att.time_s.size < 2:
+                raise DimapFormatError(self.path, _CORRECTED, "fewer than 2 valid samples")
+            return att.time_s, att.angles, "corrected"
+        speeds = self.angular_speeds.valid() if self.angular_speeds is not None else None
+        if speeds is None or speeds.time_s.size < 2:
+            raise DimapFormatError(
+                self.path, _SPEEDS, "fewer than 2 valid angular-speed samples (and no "
+                "Corrected_Attitudes): the attitude cannot be integrated"
+            )
+        raw = self.raw_angles.valid() if self.raw_angles is not None else None
+        if raw is not None and raw.time_s.size:
+            t0, a0, t_end = raw.time_s[0], raw.angles[0], raw.time_s[-1]
+        else:  # COSI-Corr: invalid absolute angles are replaced by a null attitude
+            t0, a0, t_end = speeds.time_s[0], np.zeros(3), speeds.time_s[-1]
+        keep = speeds.time_s > t0
+        times = np.concatenate([[t0], speeds.time_s[keep]])
+        rates = np.concatenate([speeds.angles[keep][:1] if keep.any() else speeds.angles[-1:],
+                                speeds.angles[keep]])
+        if t_end > times[-1]:
+            times = np.append(times, t_end)
+            rates = np.vstack([rates, rates[-1:]])
+        steps = 0.5 * (rates[1:] + rates[:-1]) * np.diff(times)[:, None]
+        angles = a0 + np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+        return times, angles, "integrated"
+
+    def look_angles(self, cols: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``PSI_X``, ``PSI_Y`` (rad) for every detector ``0 .. cols-1``.
+
+        Parameters
+        ----------
+        cols : int, optional
+            Number of detectors wanted; default :attr:`scene_width`, the width the product's
+            geolocation refers to.
+
+        Returns
+        -------
+        psi_x, psi_y : ndarray, (cols,)
+
+        Raises
+        ------
+        DimapFormatError
+            The table does not cover the detectors: a full table (more than 2 entries, SPOT 5)
+            must list every detector of the scene; a two-entry table (SPOT 1-4) must give the
+            first and the last detector of the scene.
+        """
+        cols = self.scene_width if cols is None else int(cols)
+        det = self.look_detector_col
+        covers = det[0] == 0 and det[-1] == cols - 1
+        if det.size > 2:
+            covers = covers and det.size == cols and np.array_equal(det, np.arange(cols))
+        if not covers:
+            cropped = (
+                f" (the file says NCOLS {self.shape[1]} but its geolocation refers to a "
+                f"{cols}-column scene: the metadata was cropped)" if cols != self.shape[1] else ""
+            )
+            raise DimapFormatError(
+                self.path, _LOOK,
+                f"the look-angle table covers detectors {int(det[0]) + 1}..{int(det[-1]) + 1} "
+                f"({det.size} entries) but the image has {cols} columns{cropped}; the look-angle "
+                "table doesn't cover the image, so no full-scene model can be built",
+            )
+        if det.size == cols:
+            return self.psi_x.copy(), self.psi_y.copy()
+        c = np.arange(cols, dtype=np.float64)
+        return np.interp(c, det, self.psi_x), np.interp(c, det, self.psi_y)
+
+    def earth_fixed_velocity_m_s(self) -> np.ndarray:
+        """(n, 3) the time derivative of the ECEF positions, m/s (``V - omega x P`` if inertial)."""
+        if self.velocity_frame == "earth-fixed":
+            return self.velocity_m_s.copy()
+        return self.velocity_m_s - _omega_cross(self.position_m)
+
+    def inertial_velocity_m_s(self) -> np.ndarray:
+        """(n, 3) inertial velocity on the ECEF axes, m/s (``V + omega x P`` if Earth-fixed)."""
+        if self.velocity_frame == "inertial":
+            return self.velocity_m_s.copy()
+        return self.velocity_m_s + _omega_cross(self.position_m)
+
+    def simplified_image_to_ground(self, row, col) -> tuple[np.ndarray, np.ndarray]:
+        """The product's ``Direct_Location_Model``: image -> ``(lon, lat)`` degrees at ``h = 0``.
+
+        A quadratic ``lon = sum(lc * m)``, ``lat = sum(pc * m)`` with
+        ``m = [1, R, C, R C, R^2, C^2]`` in DIMAP's 1-based ``R = row + 1``, ``C = col + 1``
+        (ordering found by evaluating it at the ``Dataset_Frame`` vertices: it reproduces them
+        to a few metres). ``row, col`` are geoblock 0-based pixel centres.
+        """
+        if self.direct_location is None:
+            raise DimapFormatError(self.path, _SIMPLIFIED, "no Direct_Location_Model")
+        r = np.asarray(row, np.float64) + 1.0
+        c = np.asarray(col, np.float64) + 1.0
+        m = np.stack([np.ones_like(r * c), r, c, r * c, r * r, c * c], axis=-1)
+        return m @ self.direct_location[0], m @ self.direct_location[1]
+
+    def simplified_ground_to_image(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
+        """The product's ``Reverse_Location_Model``: ``(lon, lat)`` at ``h = 0`` -> ``(row, col)``.
+
+        ``R = sum(lc * m)``, ``C = sum(pc * m)`` with ``m = [1, lat, lon, lat lon, lat^2, lon^2]``
+        (degrees; DIMAP 1-based ``R, C``; ordering found at the vertices, within ~0.5 px).
+        """
+        if self.reverse_location is None:
+            raise DimapFormatError(self.path, _SIMPLIFIED, "no Reverse_Location_Model")
+        x = np.asarray(lat, np.float64)
+        y = np.asarray(lon, np.float64)
+        m = np.stack([np.ones_like(x * y), x, y, x * y, x * x, y * y], axis=-1)
+        return m @ self.reverse_location[0] - 1.0, m @ self.reverse_location[1] - 1.0
+
+    def __repr__(self) -> str:
+        return (
+            f"SpotDimap(SPOT{self.mission} {self.instrument} {self.sensor_code}, "
+            f"{self.shape[0]}x{self.shape[1]}, epoch {self.epoch}, {self.path.name})"
+        )
+
+
+# ---------------------------------------------------------------------- element paths
+_EPHEMERIS = "Data_Strip/Ephemeris/Points/Point"
+_ATTITUDES = "Data_Strip/Satellite_Attitudes"
+_ANGLES = _ATTITUDES + "/Raw_Attitudes/Aocs_Attitude/Angles_List/Angles"
+_SPEEDS = _ATTITUDES + "/Raw_Attitudes/Aocs_Attitude/Angular_Speeds_List/Angular_Speeds"
+_CORRECTED = _ATTITUDES + "/Corrected_Attitudes/Corrected_Attitude/Angles"
+_QUATERNIONS = _ATTITUDES + "/Raw_Attitudes/Star_Tracker_Attitude/Quaternion_List/Quaternion"
+_TIME_STAMP = "Data_Strip/Sensor_Configuration/Time_Stamp"
+_LOOK_LISTS = "Data_Strip/Sensor_Configuration/Instrument_Look_Angles_List/Instrument_Look_Angles"
+_LOOK = _LOOK_LISTS + "/Look_Angles_List/Look_Angles"
+_SIMPLIFIED = "Geoposition/Simplified_Location_Model"
+_SOURCE = "Dataset_Sources/Source_Information/Scene_Source"
+
+#: the elements a model needs (the fuzz tests drop each and expect DimapFormatError naming it)
+REQUIRED_FIELDS = (
+    "Raster_Dimensions/NROWS",
+    "Raster_Dimensions/NCOLS",
+    _SOURCE + "/MISSION_INDEX",
+    _EPHEMERIS,
+    _TIME_STAMP + "/LINE_PERIOD",
+    _TIME_STAMP + "/SCENE_CENTER_TIME",
+    _TIME_STAMP + "/SCENE_CENTER_LINE",
+    _TIME_STAMP + "/SCENE_CENTER_COL",
+    _LOOK,
+)
+
+
+def _omega_cross(p: np.ndarray) -> np.ndarray:
+    """``omega x P`` for the Earth's rotation about +z, (n, 3) m/s."""
+    return EARTH_ROTATION_RAD_S * np.stack([-p[:, 1], p[:, 0], np.zeros(len(p))], axis=1)
+
+
+# ---------------------------------------------------------------------- sniffing
+def _metadata_file(path: str | os.PathLike[str]) -> Path:
+    """The metadata file: ``path`` itself, or ``METADATA.DIM`` inside a product directory."""
+    path = Path(path)
+    if path.is_dir():
+        for child in sorted(path.iterdir()):
+            if child.name.upper() == "METADATA.DIM" and child.is_file():
+                return child
+        raise GeoblockIOError(f"{str(path)!r}: directory has no METADATA.DIM (SPOT DIMAP product)")
+    if not path.is_file():
+        raise GeoblockIOError(f"{str(path)!r} does not exist or is not a file")
+    return path
+
+
+def is_spot_dimap(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` (a file or a product directory) looks like a SPOT DIMAP v1 document.
+
+    Reads the first 8 kB: a ``Dimap_Document`` whose ``METADATA_FORMAT`` is ``DIMAP`` version
+    1.x and whose ``METADATA_PROFILE`` starts with ``SPOT``.
+    """
+    try:
+        file = _metadata_file(path)
+        with open(file, "rb") as fh:
+            head = fh.read(8192).decode("utf-8", "replace")
+    except (OSError, GeoblockIOError):
+        return False
+    if "<Dimap_Document" not in head:
+        return False
+    try:
+        fmt = head.split("<METADATA_FORMAT", 1)[1].split("</METADATA_FORMAT>", 1)[0]
+        profile = head.split("<METADATA_PROFILE>", 1)[1].split("</METADATA_PROFILE>", 1)[0]
+    except IndexError:
+        return False
+    return bool(re.match(r"\s+version\s*=\s*[\"']1\.", fmt)) and (
+        profile.strip().upper().startswith("SPOT"))
+
+
+# ---------------------------------------------------------------------- parsing helpers
+class _Doc:
+    """An ElementTree root with field-naming accessors."""
+
+    def __init__(self, path: Path, root: ET.Element):
+        self.path = path
+        self.root = root
+
+    def error(self, field: str, problem: str) -> DimapFormatError:
+        return DimapFormatError(self.path, field, problem)
+
+    def text(self, elem: ET.Element, sub: str, field: str) -> str:
+        found = elem.find(sub)
+        if found is None or found.text is None or not found.text.strip():
+            raise self.error(field, "missing or empty (truncated metadata?)")
+        return found.text.strip()
+
+    def opt_text(self, sub: str) -> str | None:
+        found = self.root.find(sub)
+        if found is None or found.text is None or not found.text.strip():
+            return None
+        return found.text.strip()
+
+    def float(self, elem: ET.Element, sub: str, field: str) -> float:
+        text = self.text(elem, sub, field)
+        try:
+            value = float(text)
+        except ValueError:
+            raise self.error(field, f"{text!r} is not a number") from None
+        if not np.isfinite(value):
+            raise self.error(field, f"{text!r} is not finite")
+        return value
+
+    def int(self, elem: ET.Element, sub: str, field: str) -> int:
+        value = self.float(elem, sub, field)
+        if value != int(value):
+            raise self.error(field, f"{value!r} is not an integer")
+        return int(value)
+
+    def time(self, elem: ET.Element, sub: str, field: str) -> np.datetime64:
+        text = self.text(elem, sub, field)
+        try:
+            return np.datetime64(text.rstrip("Z"), "us")
+        except ValueError:
+            raise self.error(field, f"{text!r} is not an ISO-8601 time") from None
+
+    def all(self, sub: str, field: str, minimum: int) -> list[ET.Element]:
+        found = self.root.findall(sub)
+        if len(found) < minimum:
+            raise self.error(field, f"{len(found)} element(s), at least {minimum} needed "
+                             "(truncated metadata?)")
+        return found
+
+    def vectors(self, items: list[ET.Element], sub: str, field: str) -> np.ndarray:
+        return np.array(
+            [[self.float(e, f"{sub}/{c}", f"{field}/{sub}/{c}") for c in "XYZ"] for e in items]
+        ).reshape(-1, 3)
+
+    def increasing(self, t: np.ndarray, field: str) -> None:
+        if t.size > 1 and not np.all(np.diff(t) > 0):
+            i = int(np.argmin(np.diff(t)))
+            raise self.error(field, f"times are not strictly increasing (sample {i + 2} of "
+                             f"{t.size} is not after sample {i + 1})")
+
+
+def _angle_samples(doc: _Doc, items: list[ET.Element], field: str, seconds, time_tag="TIME"):
+    if not items:
+        return None
+    t = np.array([seconds(doc.time(e, time_tag, f"{field}/{time_tag}")) for e in items])
+    ang = np.array(
+        [[doc.float(e, k, f"{field}/{k}") for k in ("YAW", "PITCH", "ROLL")] for e in items]
+    ).reshape(-1, 3)
+    oor = np.array([(e.findtext("OUT_OF_RANGE") or "N").strip().upper() == "Y" for e in items])
+    doc.increasing(t, field)
+    return AttitudeSamples(t, ang, oor)
+
+
+def _position_derivative(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(n, 3) dP/dt at the samples from local polynomials through up to 7 neighbours."""
+    n = t.size
+    half = min(3, (n - 1) // 2) if n > 2 else 0
+    out = np.empty_like(p)
+    for i in range(n):  # n ~ 10 ephemeris samples: a loop over samples, not points
+        lo = min(max(i - half, 0), max(n - (2 * half + 1), 0))
+        sl = slice(lo, min(lo + 2 * half + 1, n)) if n > 2 else slice(0, n)
+        tt = t[sl] - t[i]
+        scale = max(float(np.abs(tt).max()), 1.0)
+        deg = len(tt) - 1
+        coeffs = np.polyfit(tt / scale, p[sl], deg)  # (deg+1, 3), highest power first
+        out[i] = coeffs[-2] / scale
+    return out
+
+
+# ---------------------------------------------------------------------- reader
+def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
+    """Read a SPOT 1-5 DIMAP v1 ``METADATA.DIM`` (or a product directory containing it).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The metadata file (any name: ``METADATA.DIM``, ``spot_example1.xml``) or the product
+        directory.
+
+    Returns
+    -------
+    SpotDimap
+
+    Raises
+    ------
+    GeoblockIOError
+        The file does not exist or cannot be read.
+    DimapFormatError
+        Not a SPOT DIMAP v1 document, not raw (level 1A) geometry, or truncated/inconsistent
+        metadata; the message names the file and the DIMAP field.
+    """
+    file = _metadata_file(path)
+    try:
+        root = ET.parse(file).getroot()
+    except ET.ParseError as exc:
+        raise DimapFormatError(file, "(document)", f"not well-formed XML ({exc})") from None
+    except OSError as exc:
+        raise GeoblockIOError(f"{str(file)!r}: cannot read ({exc})") from exc
+    doc = _Doc(file, root)
+    if root.tag != "Dimap_Document":
+        raise doc.error("(root)", f"root element is <{root.tag}>, not <Dimap_Document>")
+    fmt = root.find("Metadata_Id/METADATA_FORMAT")
+    version = "" if fmt is None else fmt.get("version", "")
+    if fmt is None or (fmt.text or "").strip() != "DIMAP" or not version.startswith("1."):
+        raise doc.error("Metadata_Id/METADATA_FORMAT",
+                        f"not DIMAP version 1.x (got version {version!r}); SPOT 6/7 DIMAP v2 "
+                        "physical metadata is not read by this reader")
+    profile = doc.opt_text("Metadata_Id/METADATA_PROFILE") or ""
+    level = doc.opt_text("Data_Processing/PROCESSING_LEVEL") or ""
+    if not profile.upper().startswith("SPOT"):
+        raise doc.error("Metadata_Id/METADATA_PROFILE", f"{profile!r} is not a SPOT profile")
+    if level and level.upper() != "1A":
+        raise doc.error("Data_Processing/PROCESSING_LEVEL",
+                        f"level {level!r}: only level 1A (raw geometry) has a line-of-sight model")
+    mission_name = doc.opt_text(_SOURCE + "/MISSION")
+    if mission_name is not None and mission_name.upper() != "SPOT":
+        raise doc.error(_SOURCE + "/MISSION", f"{mission_name!r} is not SPOT")
+    mission = doc.int(root, _SOURCE + "/MISSION_INDEX", _SOURCE + "/MISSION_INDEX")
+    if mission not in _MISSION_ACCURACY_M:
+        raise doc.error(_SOURCE + "/MISSION_INDEX", f"SPOT {mission}: only SPOT 1-5 are DIMAP v1")
+
+    # ---- pixel convention
+    origin_text = doc.opt_text("Raster_CS/PIXEL_ORIGIN")
+    origin = 1.0 if origin_text is None else doc.float(root, "Raster_CS/PIXEL_ORIGIN",
+                                                       "Raster_CS/PIXEL_ORIGIN")
+    cs_type = (doc.opt_text("Raster_CS/RASTER_CS_TYPE") or "POINT").upper()
+    if cs_type not in ("POINT", "CELL"):
+        raise doc.error("Raster_CS/RASTER_CS_TYPE", f"{cs_type!r} is neither POINT nor CELL")
+    offset = origin + (0.5 if cs_type == "CELL" else 0.0)  # geoblock = DIMAP - offset
+
+    rows = doc.int(root, "Raster_Dimensions/NROWS", "Raster_Dimensions/NROWS")
+    cols = doc.int(root, "Raster_Dimensions/NCOLS", "Raster_Dimensions/NCOLS")
+    for name, value in (("NROWS", rows), ("NCOLS", cols)):
+        if value < 1:
+            raise doc.error(f"Raster_Dimensions/{name}", f"{value} must be >= 1")
+
+    # ---- ephemeris and the time origin
+    points = doc.all(_EPHEMERIS, _EPHEMERIS, 2)
+    times = [doc.time(p, "TIME", f"{_EPHEMERIS}/TIME") for p in points]
+    epoch64 = min(times)
+
+    def seconds(t64: np.datetime64) -> float:
+        return float((t64 - epoch64) / np.timedelta64(1, "us")) * 1e-6
+
+    eph_t = np.array([seconds(t) for t in times])
+    doc.increasing(eph_t, _EPHEMERIS + "/TIME")
+    pos = doc.vectors(points, "Location", _EPHEMERIS)
+    vel = doc.vectors(points, "Velocity", _EPHEMERIS)
+    radius = np.linalg.norm(pos, axis=1)
+    if np.any(radius < 6.3e6) or np.any(radius > 8.0e6):
+        raise doc.error(_EPHEMERIS + "/Location",
+                        "positions are not those of a SPOT orbit (radius outside 6300-8000 km)")
+    derivative = _position_derivative(eph_t, pos)
+    err_fixed = np.abs(derivative - vel).max()
+    err_inertial = np.abs(derivative - (vel - _omega_cross(pos))).max()
+    if len(points) < 3:  # no derivative check possible: trust the mission convention
+        velocity_frame = "earth-fixed" if mission == 5 else "inertial"
+    elif err_fixed <= _VELOCITY_TOLERANCE_M_S:
+        velocity_frame = "earth-fixed"
+    elif err_inertial <= _VELOCITY_TOLERANCE_M_S:
+        velocity_frame = "inertial"
+    else:
+        raise doc.error(
+            _EPHEMERIS + "/Velocity",
+            f"velocities disagree with the positions' time derivative by {err_fixed:.1f} m/s "
+            f"(Earth-fixed) / {err_inertial:.1f} m/s (inertial): inconsistent ephemeris",
+        )
+    doris_used = (doc.opt_text("Data_Strip/Ephemeris/DORIS_USED") or "N").upper() == "Y"
+    doris = root.findall("Data_Strip/Ephemeris/Doris_Points/Doris_Point")
+    doris_err = np.array(
+        [doc.float(d, "ERROR_ESTIMATION", "Doris_Point/ERROR_ESTIMATION")
+         for d in doris if d.find("ERROR_ESTIMATION") is not None]
+    )
+
+    # ---- line dating
+    period = doc.float(root, _TIME_STAMP + "/LINE_PERIOD", _TIME_STAMP + "/LINE_PERIOD")
+    if not period > 0:
+        raise doc.error(_TIME_STAMP + "/LINE_PERIOD", f"{period!r} must be > 0")
+    center_time = seconds(doc.time(root, _TIME_STAMP + "/SCENE_CENTER_TIME",
+                                   _TIME_STAMP + "/SCENE_CENTER_TIME"))
+    center_row = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_LINE",
+                           _TIME_STAMP + "/SCENE_CENTER_LINE") - offset
+    center_col = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_COL",
+                           _TIME_STAMP + "/SCENE_CENTER_COL") - offset
+
+    # ---- attitude
+    raw = _angle_samples(doc, root.findall(_ANGLES), _ANGLES, seconds)
+    speeds = _angle_samples(doc, root.findall(_SPEEDS), _SPEEDS, seconds)
+    corrected = _angle_samples(doc, root.findall(_CORRECTED), _CORRECTED, seconds)
+    if corrected is None and speeds is None:
+        raise doc.error(_ATTITUDES, "neither Corrected_Attitudes nor Aocs_Attitude "
+                        "Angular_Speeds: no attitude (truncated metadata?)")
+    quats = root.findall(_QUATERNIONS)
+    q_t = np.array([seconds(doc.time(q, "Q_TIME", _QUATERNIONS + "/Q_TIME")) for q in quats])
+    q = np.array([[doc.float(e, f"Q{k}", f"{_QUATERNIONS}/Q{k}") for k in range(4)]
+                  for e in quats]).reshape(-1, 4)
+    star = doc.opt_text(_ATTITUDES + "/Corrected_Attitudes/STAR_TRACKER_USED")
+
+    # ---- look angles (first band's table)
+    look_list = root.find(_LOOK_LISTS)
+    look = [] if look_list is None else look_list.findall("Look_Angles_List/Look_Angles")
+    if len(look) < 2:
+        raise doc.error(_LOOK, f"{len(look)} element(s), at least 2 needed (truncated metadata?)")
+    det = np.array([doc.int(e, "DETECTOR_ID", _LOOK + "/DETECTOR_ID") for e in look], float)
+    psi_x = np.array([doc.float(e, "PSI_X", _LOOK + "/PSI_X") for e in look])
+    psi_y = np.array([doc.float(e, "PSI_Y", _LOOK + "/PSI_Y") for e in look])
+    if not np.all(np.diff(det) > 0):
+        raise doc.error(_LOOK + "/DETECTOR_ID", "detector numbers are not strictly increasing")
+    if det[0] < 1:
+        raise doc.error(_LOOK + "/DETECTOR_ID", f"detector {int(det[0])} < 1")
+    if np.any(np.abs(psi_x) >= np.pi / 2) or np.any(np.abs(psi_y) >= np.pi / 2):
+        raise doc.error(_LOOK, "look angles must be within +-90 degrees (radians expected)")
+
+    # ---- geolocation stated by the product
+    def frame_point(e: ET.Element, field: str) -> GroundPoint:
+        return GroundPoint(
+            lon=doc.float(e, "FRAME_LON", f"{field}/FRAME_LON"),
+            lat=doc.float(e, "FRAME_LAT", f"{field}/FRAME_LAT"),
+            h=0.0,
+            row=doc.float(e, "FRAME_ROW", f"{field}/FRAME_ROW") - offset,
+            col=doc.float(e, "FRAME_COL", f"{field}/FRAME_COL") - offset,
+        )
+
+    vertices = tuple(frame_point(v, "Dataset_Frame/Vertex")
+                     for v in root.findall("Dataset_Frame/Vertex"))
+    center_elem = root.find("Dataset_Frame/Scene_Center")
+    scene_center = None if center_elem is None else frame_point(center_elem,
+                                                                "Dataset_Frame/Scene_Center")
+    tie_field = "Geoposition/Geoposition_Points/Tie_Point"
+    tie_points = tuple(
+        GroundPoint(
+            lon=doc.float(t, "TIE_POINT_CRS_X", tie_field + "/TIE_POINT_CRS_X"),
+            lat=doc.float(t, "TIE_POINT_CRS_Y", tie_field + "/TIE_POINT_CRS_Y"),
+            h=doc.float(t, "TIE_POINT_CRS_Z", tie_field + "/TIE_POINT_CRS_Z")
+            if t.find("TIE_POINT_CRS_Z") is not None else 0.0,
+            row=doc.float(t, "TIE_POINT_DATA_Y", tie_field + "/TIE_POINT_DATA_Y") - offset,
+            col=doc.float(t, "TIE_POINT_DATA_X", tie_field + "/TIE_POINT_DATA_X") - offset,
+        )
+        for t in root.findall(tie_field)
+    )
+
+    def simplified(kind: str) -> np.ndarray | None:
+        node = root.find(f"{_SIMPLIFIED}/{kind}")
+        if node is None:
+            return None
+        field = f"{_SIMPLIFIED}/{kind}"
+        lc = [doc.float(e, ".", field + "/lc_List/lc") for e in node.findall("lc_List/lc")]
+        pc = [doc.float(e, ".", field + "/pc_List/pc") for e in node.findall("pc_List/pc")]
+        if len(lc) != 6 or len(pc) != 6:
+            raise doc.error(field, f"{len(lc)} lc and {len(pc)} pc coefficients, 6 each expected")
+        return np.array([lc, pc])
+
+    def opt_float(sub: str) -> float:
+        return np.nan if doc.opt_text(sub) is None else doc.float(root, sub, sub)
+
+    step = doc.opt_text("Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT")
+    instrument = (doc.opt_text(_SOURCE + "/INSTRUMENT") or "") + (
+        doc.opt_text(_SOURCE + "/INSTRUMENT_INDEX") or "")
+    return SpotDimap(
+        path=file,
+        mission=mission,
+        instrument=instrument,
+        sensor_code=doc.opt_text(_SOURCE + "/SENSOR_CODE") or "",
+        profile=profile,
+        shape=(rows, cols),
+        epoch=str(epoch64) + "Z",
+        line_period_s=period,
+        scene_center_time_s=center_time,
+        scene_center_row=center_row,
+        scene_center_col=center_col,
+        ephemeris_time_s=eph_t,
+        position_m=pos,
+        velocity_m_s=vel,
+        velocity_frame=velocity_frame,
+        doris_used=doris_used,
+        doris_error_m=doris_err,
+        raw_angles=raw,
+        angular_speeds=speeds,
+        corrected_angles=corrected,
+        quaternion_time_s=q_t,
+        quaternions=q,
+        star_tracker_used=None if star is None else star.upper() == "Y",
+        look_detector_col=det - 1.0,
+        psi_x=psi_x,
+        psi_y=psi_y,
+        vertices=vertices,
+        scene_center=scene_center,
+        tie_points=tie_points,
+        direct_location=simplified("Direct_Location_Model"),
+        reverse_location=simplified("Reverse_Location_Model"),
+        incidence_angle_deg=opt_float(_SOURCE + "/INCIDENCE_ANGLE"),
+        viewing_angle_deg=opt_float(_SOURCE + "/VIEWING_ANGLE"),
+        mirror_step_count=None if step is None else int(float(step)),
+        location_accuracy_m=_MISSION_ACCURACY_M[mission],
+        location_accuracy_source=_ACCURACY_SOURCE,
+    )
