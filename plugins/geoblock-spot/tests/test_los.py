@@ -200,3 +200,23 @@ def test_chenlee_fits_each_dimap_model(data_dir, name, rms_px, max_px):
     assert fit.converged
     assert fit.check_rms_px < rms_px and fit.check_max_px < max_px
     assert fit.rms_px < rms_px
+
+
+@pytest.mark.parametrize("name", ["SPOT1.DIM", "SPOT5.DIM"])
+@pytest.mark.parametrize("h", [-500.0, 0.0, 9000.0])
+def test_ground_to_image_converges_over_the_full_scene(data_dir, name, h):
+    """Every 40th pixel of the full scene (and the last row), backprojected to h and
+    projected back: every point converges, round trip below 1e-8 px."""
+    path = data_dir / "cosicorr3d" / "test_dataset" / name
+    if not path.exists():
+        pytest.skip(f"{path} not in the test data")
+    model = open_model(path)
+    rows, cols = model.shape
+    r, c = np.meshgrid(np.arange(0, rows, 40.0), np.arange(0, cols, 40.0), indexing="ij")
+    r = np.concatenate([r.ravel(), np.full(50, rows - 1.0)])
+    c = np.concatenate([c.ravel(), np.linspace(0.0, cols - 1.0, 50)])
+    (lon, lat, hh), status = model.backproject_with_status(r, c, np.full(r.shape, h))
+    assert (status == 0).all()
+    (r2, c2), status2 = model.project_with_status(lon, lat, hh)
+    assert (status2 == 0).all()
+    assert np.max(np.hypot(r2 - r, c2 - c)) < 1e-8
