@@ -11,7 +11,7 @@ model is evaluated on a coarse lattice and interpolated:
   points) is taken per block from the block's global indices alone, so a pixel gets the same
   value whatever the chunk it is computed in: output is identical for any chunking.
 * **Nodes.** In a block, lattice nodes sit on the pixel centres whose global indices are
-  multiples of the spacing ``s`` (a power of two, ``block_px / 4`` at first), nodes ``0 ..
+  multiples of the spacing ``s`` (a power of two, ``min(block_px / 4, 64)`` at first), nodes ``0 ..
   block_px / s`` inclusive along each axis. At each node the exact model is evaluated at
   ``2 m + 1`` ellipsoidal heights evenly spread over the block's DEM height range
   (``dem.height_range`` of the block's lon/lat box, padded).
@@ -46,8 +46,12 @@ from geoblock._affine import apply as affine_apply
 
 __all__ = ["LatticeInfo", "source_coordinates"]
 
-#: Default side of the lattice blocks, output pixels (a power of two).
-BLOCK_PX = 256
+#: Default side of the lattice blocks, output pixels (a power of two). A block's decision
+#: (check points, node projections) is a fixed cost: 1024-pixel blocks amortise it over 16
+#: times more pixels than 256-pixel ones (measured: 19 -> 23 Mpix/s on one core).
+BLOCK_PX = 1024
+#: First lattice spacing tried, output pixels (at most a quarter of the block).
+FIRST_SPACING_PX = 64
 #: The checked error must be below ``SAFETY * tolerance_px`` (random checks see a sample).
 SAFETY = 0.5
 #: Largest number of quadratic height pairs (``2 m + 1`` levels) per block.
@@ -372,7 +376,7 @@ class _Block:
         pc = rng.integers(0, self.ncols, n_check)
         ex_r, ex_c = ctx.exact(self.r0 + pr, self.c0 + pc)
         ok = np.isfinite(ex_r) & np.isfinite(ex_c)
-        s = max(self.size // 4, 1)
+        s = max(min(self.size // 4, FIRST_SPACING_PX), 1)
         pairs = 1
         while True:
             nodes = self._nodes(s, pairs)
