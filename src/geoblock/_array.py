@@ -1,9 +1,12 @@
-"""Private helpers shared by every vectorised function: argument broadcasting and status warnings."""
+"""Private helpers shared by every vectorised function: argument broadcasting, status
+warnings, the finite bounding box of coordinate arrays."""
 
 from __future__ import annotations
 
+import math
 import warnings
 
+import numba
 import numpy as np
 
 from geoblock.errors import (
@@ -23,8 +26,11 @@ _WARNINGS = {
 }
 
 
-def broadcast_float64(**arrays) -> tuple[np.ndarray, ...]:
+def broadcast_float64(*, _copy: bool = True, **arrays) -> tuple[np.ndarray, ...]:
     """Broadcast named coordinate arguments together as float64 arrays.
+
+    The results are writable copies, unless ``_copy=False``: then read-only views (no copy
+    when the arguments are float64 arrays of one shape), for callers that only read them.
 
     Raises
     ------
@@ -44,6 +50,8 @@ def broadcast_float64(**arrays) -> tuple[np.ndarray, ...]:
     except ValueError:
         shapes = ", ".join(f"{k} {np.shape(v)}" for k, v in zip(arrays, converted, strict=True))
         raise ShapeMismatchError(f"coordinate shapes do not broadcast together: {shapes}") from None
+    if not _copy:
+        return tuple(out)
     # broadcast_arrays returns read-only views; copy so callers may write into results.
     return tuple(np.array(a, dtype=np.float64) for a in out)
 
@@ -64,3 +72,43 @@ def warn_status(status: np.ndarray, operation: str, stacklevel: int = 3) -> None
                 category,
                 stacklevel=stacklevel,
             )
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_finite_bounds(x, y):  # pragma: no cover - compiled
+    x_lo = math.inf
+    x_hi = -math.inf
+    y_lo = math.inf
+    y_hi = -math.inf
+    for k in range(x.size):
+        a = x[k]
+        b = y[k]
+        if a < x_lo:
+            x_lo = a
+        if a > x_hi:
+            x_hi = a
+        if b < y_lo:
+            y_lo = b
+        if b > y_hi:
+            y_hi = b
+    return x_lo, x_hi, y_lo, y_hi
+
+
+def finite_bounds(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, y_min, y_max)`` of two same-shape float arrays in one compiled pass,
+    ignoring NaN (as ``np.fmin``/``np.fmax`` reductions do); NaN for an all-NaN array.
+
+    Examples
+    --------
+    >>> finite_bounds(np.array([1.0, np.nan, -2.0]), np.array([np.nan, 5.0, 4.0]))
+    (-2.0, 1.0, 4.0, 5.0)
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+    y = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+    x_lo, x_hi, y_lo, y_hi = _nb_finite_bounds(x, y)
+    out = []
+    for lo, hi in ((x_lo, x_hi), (y_lo, y_hi)):
+        if lo > hi:  # no finite value (NaN never compares)
+            lo = hi = math.nan
+        out += [float(lo), float(hi)]
+    return out[0], out[1], out[2], out[3]

@@ -41,7 +41,7 @@ class DemBase(abc.ABC):
     def height_with_status(self, lon: ArrayLike, lat: ArrayLike) -> tuple[Float64Array, np.ndarray]:
         """(*S,) ellipsoidal heights (metres) and statuses: ``NO_DEM`` where NaN,
         ``INVALID_INPUT`` for non-finite coordinates."""
-        lon, lat = broadcast_float64(lon=lon, lat=lat)
+        lon, lat = broadcast_float64(lon=lon, lat=lat, _copy=False)  # only read here
         ok = np.isfinite(lon) & np.isfinite(lat)
         if ok.all():  # the common case, without the gather/scatter copies
             h = np.asarray(self._heights(lon.reshape(-1), lat.reshape(-1))).reshape(lon.shape)

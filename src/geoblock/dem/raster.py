@@ -49,6 +49,7 @@ from affine import Affine
 
 from geoblock import coords
 from geoblock._affine import apply as affine_apply
+from geoblock._array import finite_bounds
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
@@ -550,15 +551,14 @@ class RasterDem(DemBase):
         x, y = lonlat_to_crs(self._crs, lon, lat)
         x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
         y = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
-        x_lo, x_hi = float(np.fmin.reduce(x)), float(np.fmax.reduce(x))
-        y_lo, y_hi = float(np.fmin.reduce(y)), float(np.fmax.reduce(y))
+        x_lo, x_hi, y_lo, y_hi = finite_bounds(x, y)
         if not all(math.isfinite(v) for v in (x_lo, x_hi, y_lo, y_hi)):
             return None
         west = float(self._transform.c)
         if self._lonlat and not (x_lo >= west and x_hi < west + 360.0):
             # the box of the longitudes as the kernel wraps them (it wraps x itself)
             wrapped = west + (x - west) % 360.0
-            x_lo, x_hi = float(np.fmin.reduce(wrapped)), float(np.fmax.reduce(wrapped))
+            x_lo, x_hi, _, _ = finite_bounds(wrapped, y)
         rows, cols = self._shape
         b, h = self._block, _HALO
         cc, rr = affine_apply(~self._transform, np.array([x_lo, x_lo, x_hi, x_hi]),

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from geoblock._array import finite_bounds
 from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample_cast
 from geoblock.ortho.lattice import BLOCK_PX, source_coordinates
 
@@ -80,9 +81,8 @@ def ortho_chunk(
     out_shape = (image.bands, r1 - r0, c1 - c0)
     rows, cols = image.shape
     pad = KERNEL_RADIUS[kernel] + 1
-    # row/col are NaN exactly where not valid: fmin/fmax skip them without a gather
-    r_lo, r_hi = float(np.fmin.reduce(row, axis=None)), float(np.fmax.reduce(row, axis=None))
-    c_lo, c_hi = float(np.fmin.reduce(col, axis=None)), float(np.fmax.reduce(col, axis=None))
+    # row/col are NaN exactly where not valid: skipped without a gather
+    r_lo, r_hi, c_lo, c_hi = finite_bounds(row, col)
     if math.isfinite(r_lo) and math.isfinite(c_lo):
         wr0 = max(math.floor(r_lo) - pad, 0)
         wr1 = min(math.ceil(r_hi) + pad + 1, rows)

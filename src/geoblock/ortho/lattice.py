@@ -133,6 +133,17 @@ def _row_lerp(nodes, kr, tr, out):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True)
+def _column_cells(c_off, ncols, s, n):  # pragma: no cover - compiled
+    """:func:`_cell` of block columns ``c_off .. c_off + ncols - 1``: shared by every row."""
+    kcs = np.empty(ncols, dtype=np.int64)
+    tcs = np.empty(ncols)
+    inv = 1.0 / s
+    for j in range(ncols):
+        kcs[j], tcs[j] = _cell(c_off + j, s, inv, n)
+    return kcs, tcs
+
+
+@numba.njit(nogil=True, cache=True)
 def _bilinear_into(nodes, r_off, c_off, s, out):  # pragma: no cover - compiled
     """``out`` (nrows, ncols, any layout): bilinear interpolation of ``nodes`` (nr, nc) at
     block pixels ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``); bit-identical
@@ -140,13 +151,14 @@ def _bilinear_into(nodes, r_off, c_off, s, out):  # pragma: no cover - compiled
     nrows, ncols = out.shape
     inv = 1.0 / s
     line = np.empty(nodes.shape[1])
+    kcs, tcs = _column_cells(c_off, ncols, s, nodes.shape[1])
     for i in range(nrows):
         kr, tr = _cell(r_off + i, s, inv, nodes.shape[0])
         _row_lerp(nodes, kr, tr, line)
         for j in range(ncols):
-            kc, tc = _cell(c_off + j, s, inv, nodes.shape[1])
+            kc = kcs[j]
             a = line[kc]
-            out[i, j] = a + tc * (line[kc + 1] - a)
+            out[i, j] = a + tcs[j] * (line[kc + 1] - a)
 
 
 @numba.njit(nogil=True, cache=True)
@@ -172,6 +184,7 @@ def _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row,
     lr = np.empty((nlev, nc))
     lc = np.empty((nlev, nc))
     miss = 0
+    kcs, tcs = _column_cells(c_off, ncols, s, nc)
     for i in range(nrows):
         kr, tr = _cell(r_off + i, s, inv, nr)
         for m in range(nlev):
@@ -183,7 +196,8 @@ def _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row,
                 row[i, j] = np.nan
                 col[i, j] = np.nan
                 continue
-            kc, tc = _cell(c_off + j, s, inv, nc)
+            kc = kcs[j]
+            tc = tcs[j]
             lev, w0, w1, w2 = _quadratic_weights(hh, h0, dh, pairs)
             a = lr[lev, kc]
             vr = w0 * (a + tc * (lr[lev, kc + 1] - a))
@@ -560,8 +574,9 @@ def source_coordinates(
     rs, cs = window if window is not None else (None, None)
     r0, r1 = _slice_bounds(rs, shape[0])
     c0, c1 = _slice_bounds(cs, shape[1])
-    out_r = np.full((r1 - r0, c1 - c0), np.nan)
-    out_c = np.full((r1 - r0, c1 - c0), np.nan)
+    # every pixel is written below (by its block's fill or fill_lattice)
+    out_r = np.empty((r1 - r0, c1 - c0))
+    out_c = np.empty((r1 - r0, c1 - c0))
     if out_r.size == 0:
         return out_r, out_c, np.zeros(out_r.shape, bool)
     ctx = _Context(model, dem, crs, transform, shape, info)
@@ -573,8 +588,8 @@ def source_coordinates(
     for bi in range(r0 // B, (r1 - 1) // B + 1):
         lo_r, hi_r = max(r0, bi * B), min(r1, (bi + 1) * B)
         band = (slice(lo_r - r0, hi_r - r0), slice(None))
-        lon_w = np.full(out_r[band].shape, np.nan)
-        lat_w = np.full(out_r[band].shape, np.nan)
+        lon_w = np.empty(out_r[band].shape)  # lattice blocks write theirs, others NaN
+        lat_w = np.empty(out_r[band].shape)
         pending = []
         for bj in range(c0 // B, (c1 - 1) // B + 1):
             block = _Block(ctx, bi, bj, B, float(tolerance_px), int(check_points), seed)
@@ -585,6 +600,8 @@ def source_coordinates(
                 pending.append((block, part))
             else:
                 block.fill(out_r, out_c, *part, lo_r - r0, lo_c - c0)
+                lon_w[:, lo_c - c0:hi_c - c0] = np.nan
+                lat_w[:, lo_c - c0:hi_c - c0] = np.nan
         if pending:
             h_w = ctx.height(lon_w, lat_w)
             for block, (a, b, c, d) in pending:
