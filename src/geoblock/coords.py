@@ -19,7 +19,7 @@ import numpy as np
 import pyproj
 
 from geoblock._array import broadcast_float64
-from geoblock.typing import ArrayLike, EcefCoords, Float64Array, GroundCoords
+from geoblock.typing import ArrayLike, EcefCoords, Float64Array, GroundCoords, Status
 
 __all__ = [
     "WGS84_A",
@@ -34,6 +34,7 @@ __all__ = [
     "enu_to_ecef_jacobian",
     "geodetic_to_ecef",
     "geodetic_to_ecef_jacobian",
+    "intersect_height",
     "transformer",
     "utm_crs",
 ]
@@ -376,3 +377,83 @@ def transformer(src: pyproj.CRS | str | int, dst: pyproj.CRS | str | int) -> pyp
     if found is None:
         found = cache[key] = pyproj.Transformer.from_crs(src, dst, always_xy=True)
     return found
+
+
+def intersect_height(
+    origin: np.ndarray,
+    direction: np.ndarray,
+    h: np.ndarray,
+    tolerance_m: float = 1e-7,
+    max_iterations: int = 10,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Intersect rays with the surfaces of given geodetic heights: a line of sight's ground
+    point at ``h`` (every pushbroom model's image -> ground).
+
+    Start: the nearer root on the ellipsoid of semi-axes ``(a + h, b + h)``; then Newton on
+    the ray parameter ``s`` with ``dh/ds = up . direction`` until the geodetic height misses
+    ``h`` by at most ``tolerance_m``.
+
+    Parameters
+    ----------
+    origin : ndarray, (N, 3)
+        Ray origins, ECEF metres (a sensor above the surface).
+    direction : ndarray, (N, 3)
+        Unit ray directions, ECEF.
+    h : ndarray, (N,)
+        Heights above the WGS84 ellipsoid, metres.
+    tolerance_m : float
+        Height tolerance, metres.
+    max_iterations : int
+        Newton iteration cap.
+
+    Returns
+    -------
+    lon, lat : ndarray, (N,)
+        Degrees; NaN where not converged.
+    s : ndarray, (N,)
+        Ray parameter of the ground point (``origin + s direction``), metres.
+    status : ndarray, (N,) uint8
+        ``CONVERGED``; ``NO_INTERSECTION`` for rays that miss the surface or leave it upwards;
+        ``MAX_ITERATIONS``.
+    """
+    origin = np.asarray(origin, dtype=np.float64)
+    direction = np.asarray(direction, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    n = h.shape[0]
+    status = np.full(n, np.uint8(Status.NO_INTERSECTION), dtype=np.uint8)
+    lon = np.full(n, np.nan)
+    lat = np.full(n, np.nan)
+    ax = WGS84_A + h
+    bz = WGS84_B + h
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.stack([ax, ax, bz], axis=-1)
+        pa = origin / scale
+        ua = direction / scale
+        qa = np.sum(ua * ua, axis=1)
+        qb = np.sum(pa * ua, axis=1)  # half the linear coefficient
+        qc = np.sum(pa * pa, axis=1) - 1.0
+        disc = qb * qb - qa * qc
+        s = qc / (-qb + np.sqrt(disc))  # the nearer root, stable form (qb < 0, qc > 0)
+    todo = np.flatnonzero(np.isfinite(s) & (s > 0) & (qc > 0))
+    for _ in range(max_iterations):
+        if todo.size == 0:
+            break
+        p = origin[todo] + s[todo, None] * direction[todo]
+        g = ecef_to_geodetic(p[:, 0], p[:, 1], p[:, 2])
+        lon[todo], lat[todo] = g.lon, g.lat
+        miss = g.h - h[todo]
+        cl = np.cos(np.radians(g.lat))
+        up = np.stack([cl * np.cos(np.radians(g.lon)), cl * np.sin(np.radians(g.lon)),
+                       np.sin(np.radians(g.lat))], axis=-1)
+        rate = np.sum(up * direction[todo], axis=1)
+        done = np.abs(miss) <= tolerance_m
+        bad = ~(rate < 0) | ~np.isfinite(miss)
+        status[todo[done & ~bad]] = Status.CONVERGED
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s[todo] -= miss / rate
+        todo = todo[~done & ~bad]
+    status[todo] = Status.MAX_ITERATIONS
+    failed = status != Status.CONVERGED
+    lon[failed] = np.nan
+    lat[failed] = np.nan
+    return lon, lat, s, status

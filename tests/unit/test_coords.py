@@ -182,3 +182,32 @@ def test_ecef_to_geodetic_jacobian_inverts_the_forward_one():
     inv = coords.ecef_to_geodetic_jacobian(lon, lat, h)
     fwd = coords.geodetic_to_ecef_jacobian(lon, lat, h)
     assert np.allclose(inv @ fwd, np.eye(3), atol=1e-10)
+
+
+def test_intersect_height_hits_the_height_surface_and_reports_misses():
+    """Rays from orbit to h: the ground point's geodetic height is h; rays pointing away
+    from the Earth or passing it by get NO_INTERSECTION."""
+    from geoblock.typing import Status
+
+    rng = np.random.default_rng(5)
+    n = 200
+    lon = rng.uniform(-180, 180, n)
+    lat = rng.uniform(-85, 85, n)
+    h = rng.uniform(-500, 9000, n)
+    target = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
+    sat = np.stack(coords.geodetic_to_ecef(lon + rng.normal(0, 1, n), lat + rng.normal(0, 1, n),
+                                           np.full(n, 700e3)), axis=-1)
+    d = target - sat
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[0] = -d[0]  # away from the Earth
+    d[1] = np.cross(sat[1], [0.0, 0.0, 1.0])  # horizontal: passes the Earth by
+    d[1] /= np.linalg.norm(d[1])
+    g_lon, g_lat, s, status = coords.intersect_height(sat, d, h)
+    assert status[0] == Status.NO_INTERSECTION and status[1] == Status.NO_INTERSECTION
+    assert np.isnan(g_lon[:2]).all()
+    ok = slice(2, None)
+    assert (status[ok] == Status.CONVERGED).all()
+    np.testing.assert_allclose(g_lon[ok], lon[ok], atol=1e-9)
+    np.testing.assert_allclose(g_lat[ok], lat[ok], atol=1e-9)
+    p = sat[ok] + s[ok, None] * d[ok]
+    np.testing.assert_allclose(coords.ecef_to_geodetic(*p.T).h, h[ok], atol=1e-6)

@@ -824,8 +824,8 @@ class LinescanModel(SensorModelBase):
         t = self._line_times.time(row)
         pos, _, rot, _ = self._state(t)
         u = np.einsum("nij,nj->ni", rot, self._look.at(col))
-        lon, lat, status = _intersect(pos, u, h, self.intersection_tolerance_m,
-                                      self.intersection_max_iterations)
+        lon, lat, _, status = coords.intersect_height(pos, u, h, self.intersection_tolerance_m,
+                                                      self.intersection_max_iterations)
         status[~np.all(np.isfinite(pos), axis=1) | ~np.all(np.isfinite(u), axis=1)] = _OUT
         return lon, lat, status
 
@@ -1080,45 +1080,3 @@ def _nan_safe(jac: np.ndarray) -> np.ndarray:
         jac = jac.copy()
         jac[bad] = np.eye(2)
     return jac
-
-
-def _intersect(pos: np.ndarray, u: np.ndarray, h: np.ndarray, tol: float, max_iter: int):
-    """Intersect rays ``pos + s u`` (N, 3) with the surfaces of geodetic height h (N,).
-
-    Start: the nearer root on the ellipsoid of semi-axes (a + h, b + h); then Newton on s with
-    ``dh/ds = up . u``. Returns lon, lat (degrees) and a status.
-    """
-    n = h.shape[0]
-    status = np.full(n, np.uint8(Status.NO_INTERSECTION), dtype=np.uint8)
-    lon = np.full(n, np.nan)
-    lat = np.full(n, np.nan)
-    ax = coords.WGS84_A + h
-    bz = coords.WGS84_B + h
-    with np.errstate(invalid="ignore", divide="ignore"):
-        pa = pos / np.stack([ax, ax, bz], axis=-1)
-        ua = u / np.stack([ax, ax, bz], axis=-1)
-        qa = np.sum(ua * ua, axis=1)
-        qb = np.sum(pa * ua, axis=1)  # half the linear coefficient
-        qc = np.sum(pa * pa, axis=1) - 1.0
-        disc = qb * qb - qa * qc
-        s = qc / (-qb + np.sqrt(disc))  # the nearer root, stable form (qb < 0, qc > 0)
-    todo = np.flatnonzero(np.isfinite(s) & (s > 0) & (qc > 0))
-    for _ in range(max_iter):
-        if todo.size == 0:
-            break
-        p = pos[todo] + s[todo, None] * u[todo]
-        g = coords.ecef_to_geodetic(p[:, 0], p[:, 1], p[:, 2])
-        lon[todo], lat[todo] = g.lon, g.lat
-        miss = g.h - h[todo]
-        cl = np.cos(np.radians(g.lat))
-        up = np.stack([cl * np.cos(np.radians(g.lon)), cl * np.sin(np.radians(g.lon)),
-                       np.sin(np.radians(g.lat))], axis=-1)
-        rate = np.sum(up * u[todo], axis=1)
-        done = np.abs(miss) <= tol
-        bad = ~(rate < 0) | ~np.isfinite(miss)
-        status[todo[done & ~bad]] = _CONVERGED
-        with np.errstate(invalid="ignore", divide="ignore"):
-            s[todo] -= miss / rate
-        todo = todo[~done & ~bad]
-    status[todo] = Status.MAX_ITERATIONS
-    return lon, lat, status

@@ -23,7 +23,7 @@ import numpy as np
 from geoblock import coords
 from geoblock.models.base import SensorModelBase
 from geoblock.models.parameters import ParameterSet
-from geoblock.typing import ArrayLike, Float64Array, Status
+from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = ["AffineCamera", "ConstantVelocityPushbroom"]
 
@@ -276,26 +276,6 @@ class ConstantVelocityPushbroom(SensorModelBase):
         d_enu /= np.linalg.norm(d_enu, axis=-1, keepdims=True)
         o = np.stack(self._frame.to_ecef(*origin_enu.T), axis=-1)
         d = d_enu @ self._frame.rotation  # ENU -> ECEF directions
-        # intersect o + s d with the surface of ellipsoidal height h: Newton on s
-        s = (origin_enu[:, 2] - h) / -d_enu[:, 2]
-        status = np.full(row.shape, np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
-        todo = np.arange(row.size)
-        lon = np.full(row.shape, np.nan)
-        lat = np.full(row.shape, np.nan)
-        for _ in range(self.intersection_max_iterations):
-            p = o[todo] + s[todo, None] * d[todo]
-            g = coords.ecef_to_geodetic(p[:, 0], p[:, 1], p[:, 2])
-            lon[todo], lat[todo] = g.lon, g.lat
-            miss = g.h - h[todo]
-            up = coords.enu_rotation(g.lon, g.lat)[:, 2, :]
-            rate = np.einsum("ij,ij->i", up, d[todo])  # dh/ds
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s[todo] -= miss / rate
-            done = np.abs(miss) <= self.intersection_tolerance_m
-            bad = ~np.isfinite(s[todo]) | (rate >= 0)
-            status[todo[bad]] = Status.NO_INTERSECTION
-            status[todo[done & ~bad]] = Status.CONVERGED
-            todo = todo[~done & ~bad]
-            if todo.size == 0:
-                break
+        lon, lat, _, status = coords.intersect_height(
+            o, d, h, self.intersection_tolerance_m, self.intersection_max_iterations)
         return lon, lat, status

@@ -734,37 +734,13 @@ class ChenLeeModel(SensorModelBase):
         d_work /= np.linalg.norm(d_work, axis=-1, keepdims=True)
         o = self._frame.to_ecef(pos)
         d = d_work @ self._frame.rotation
-        # first intersection with the ellipsoid of semi-axes (a + h, b + h), then Newton on
-        # the geodetic height
-        a2 = (coords.WGS84_A + h) ** 2
-        b2 = (coords.WGS84_B + h) ** 2
-        qa = (d[:, 0] ** 2 + d[:, 1] ** 2) / a2 + d[:, 2] ** 2 / b2
-        qb = 2.0 * ((o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]) / a2 + o[:, 2] * d[:, 2] / b2)
-        qc = (o[:, 0] ** 2 + o[:, 1] ** 2) / a2 + o[:, 2] ** 2 / b2 - 1.0
-        disc = qb * qb - 4.0 * qa * qc
-        with np.errstate(invalid="ignore", divide="ignore"):
-            root = np.sqrt(disc)
-            # the nearer root; from a sensor above the surface both roots are positive
-            s = (-qb - root) / (2.0 * qa)
-        miss_ray = inside & ~((disc >= 0) & (s > 0))
-        status[miss_ray] = Status.NO_INTERSECTION
-        todo = np.flatnonzero(inside & ~miss_ray)
-        for _ in range(self.intersection_max_iterations):
-            if todo.size == 0:
-                break
-            q = o[todo] + s[todo, None] * d[todo]
-            g = coords.ecef_to_geodetic(q[:, 0], q[:, 1], q[:, 2])
-            lon[todo], lat[todo] = g.lon, g.lat
-            miss = g.h - h[todo]
-            done = np.abs(miss) <= self.intersection_tolerance_m
-            status[todo[done]] = Status.CONVERGED
-            up = coords.enu_rotation(g.lon, g.lat)[..., 2, :]
-            rate = np.einsum("ij,ij->i", up, d[todo])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s[todo] -= miss / rate
-            bad = ~done & ~(rate < 0)
-            status[todo[bad]] = Status.NO_INTERSECTION
-            todo = todo[~done & ~bad]
+        todo = np.flatnonzero(inside)
+        lon_i, lat_i, s_i, status_i = coords.intersect_height(
+            o[todo], d[todo], h[todo], self.intersection_tolerance_m,
+            self.intersection_max_iterations)
+        lon[todo], lat[todo], status[todo] = lon_i, lat_i, status_i
+        s = np.full(n, np.nan)
+        s[todo] = s_i
         ok = status == Status.CONVERGED
         p = np.full((n, 3), np.nan)
         p[ok] = self._frame.from_ecef(o[ok] + s[ok, None] * d[ok])
