@@ -62,5 +62,8 @@ def geoblock_write_sensor_model(model, path, format, options):
         raise ModelFormatError(
             f"{path}: model {model.name!r} is not JSON-safe (to_dict() holds {exc})"
         ) from exc
-    Path(path).write_text(text + "\n", encoding="utf-8")
+    from geoblock.io._atomic import atomic_path
+
+    with atomic_path(path, "model JSON ") as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
     return True

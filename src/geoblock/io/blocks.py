@@ -45,7 +45,6 @@ import math
 import os
 import re
 import tomllib
-import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +52,7 @@ from types import MappingProxyType
 from typing import Any
 
 from geoblock.errors import GeoblockIOError, ModelFormatError
+from geoblock.io._atomic import atomic_path
 
 __all__ = ["Block", "BlockDem", "BlockFileError", "BlockImage", "dumps_toml", "read_block",
            "write_block"]
@@ -399,21 +399,10 @@ def write_block(path: str | os.PathLike[str], block: Block) -> Path:
         ``path``.
     """
     path = Path(path)
-    if not path.parent.is_dir():
-        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
     text = "# geoblock block file (docs: user-guide/simulation.md)\n" + dumps_toml(
         block_to_dict(block, path.parent))
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
-    try:
+    with atomic_path(path, "block file ") as tmp:
         tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise GeoblockIOError(f"cannot write block file {str(path)!r}: {exc.strerror}") from exc
-    finally:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
     return path
 
 

@@ -5,19 +5,19 @@ from __future__ import annotations
 
 import math
 import os
-import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from geoblock.dem.filled import FilledDem
 from geoblock.dem.base import DemBase
 from geoblock.dem.constant import ConstantDem
+from geoblock.dem.filled import FilledDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.raster import VERTICALS, MosaicDem, RasterDem
-from geoblock.errors import DemError, GeoblockIOError
+from geoblock.errors import DemError
+from geoblock.io._atomic import atomic_path
 
 __all__ = ["open_dem", "vertical_crs", "write_dem"]
 
@@ -284,8 +284,6 @@ def write_dem(
     if transform.is_degenerate:
         raise DemError(f"write_dem {path}: degenerate transform {tuple(transform)[:6]}")
     full_crs = vertical_crs(crs, vertical)
-    if not path.parent.is_dir():
-        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
     data = np.where(np.isnan(arr), float(nodata), arr).astype(dtype)
     profile: dict[str, Any] = {
         "driver": "GTiff", "width": arr.shape[1], "height": arr.shape[0], "count": 1,
@@ -297,18 +295,8 @@ def write_dem(
     if compress:
         profile["compress"] = compress
     datum = "EGM96 geoid" if vertical == "geoid" else "WGS84 ellipsoid"
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
-    try:
-        with rasterio.open(tmp, "w", **profile) as dst:
-            dst.write(data, 1)
-            dst.update_tags(1, GEOBLOCK_VERTICAL=vertical, VERTICAL_DATUM=datum)
-            dst.set_band_unit(1, "metre")
-        os.replace(tmp, path)
-    except rasterio.errors.RasterioIOError as exc:
-        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
-    finally:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
+    with atomic_path(path) as tmp, rasterio.open(tmp, "w", **profile) as dst:
+        dst.write(data, 1)
+        dst.update_tags(1, GEOBLOCK_VERTICAL=vertical, VERTICAL_DATUM=datum)
+        dst.set_band_unit(1, "metre")
     return path

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from geoblock.errors import GeoblockIOError
+from geoblock.io._atomic import atomic_path
 
 __all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
 
@@ -423,8 +424,6 @@ def write_image(
                          f"{np.shape(array)}")
     if data.dtype == np.dtype(bool):
         data = data.astype(np.uint8)
-    if not path.parent.is_dir():
-        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
     bands, rows, cols = data.shape
     profile: dict[str, Any] = {"driver": "GTiff", "width": cols, "height": rows, "count": bands,
                                "dtype": data.dtype.name}
@@ -434,20 +433,10 @@ def write_image(
         profile["compress"] = compress
     if nodata is not None:
         profile["nodata"] = nodata
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(tmp, "w", **profile) as dst:
-                dst.write(data)
-                if tags:
-                    dst.update_tags(**{str(k): str(v) for k, v in tags.items()})
-        os.replace(tmp, path)
-    except rasterio.errors.RasterioIOError as exc:
-        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
-    finally:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
+    with atomic_path(path) as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(data)
+            if tags:
+                dst.update_tags(**{str(k): str(v) for k, v in tags.items()})
     return path
