@@ -52,6 +52,8 @@ __all__ = ["LatticeInfo", "source_coordinates"]
 BLOCK_PX = 1024
 #: First lattice spacing tried, output pixels (at most a quarter of the block).
 FIRST_SPACING_PX = 64
+#: Output rows interpolated and sampled together (the intermediates stay in the CPU cache).
+STRIP_ROWS = 64
 #: The checked error must be below ``SAFETY * tolerance_px`` (random checks see a sample).
 SAFETY = 0.5
 #: Largest number of quadratic height pairs (``2 m + 1`` levels) per block.
@@ -315,6 +317,7 @@ class _Block:
         self.ncols = min(size, cols - self.c0)
         self.spacing = 0  # 0: exact
         self.pairs = 1
+        self._with_fallback: tuple[np.ndarray, np.ndarray] | None = None
         self.nodes: tuple[np.ndarray, ...] | None = None
         if tol == 0:
             self.h_range: tuple[float, float] | None = (0.0, 0.0)
@@ -486,17 +489,22 @@ class _Block:
             row, col = self._exact_block()
             out_r[sl], out_c[sl] = row[part], col[part]
             return
-        row, col, lon, lat, h = self._lattice(r_lo, r_hi, c_lo, c_hi)
-        miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
-        if miss.any():
+        if self._with_fallback is None:
+            row, col, lon, lat, h = self._lattice(r_lo, r_hi, c_lo, c_hi)
+            miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
+            if not miss.any():
+                out_r[sl], out_c[sl] = row, col
+                return
             # nodes outside the model's domain: those pixels exactly, batched over the whole
-            # block so that the batch (and so the bits) does not depend on the chunk
+            # block so that the batch (and so the bits) does not depend on the chunk; kept
+            # for the block's other strips
             row, col, lon, lat, h = self._lattice(0, self.nrows, 0, self.ncols)
             miss = np.isfinite(h) & ~(np.isfinite(row) & np.isfinite(col))
             er, ec = self.ctx.project(lon[miss], lat[miss], h[miss])
             row[miss], col[miss] = er, ec
-            row, col = row[part], col[part]
-        out_r[sl], out_c[sl] = row, col
+            self._with_fallback = (row, col)
+        row, col = self._with_fallback
+        out_r[sl], out_c[sl] = row[part], col[part]
 
 
 def _quadratic_in_h(vr, vc, h, lev, pairs):
@@ -581,33 +589,41 @@ def source_coordinates(
         return out_r, out_c, np.zeros(out_r.shape, bool)
     ctx = _Context(model, dem, crs, transform, shape, info)
     B = int(block_px)
-    # Lattice blocks first interpolate their pixels' lon/lat into window-sized arrays; the
-    # DEM is then sampled once for the whole window (DEM heights are pointwise, so batching
-    # them does not change a bit), and each block interpolates its image coordinates.
-    # (one batch per row of blocks: very large batches cost more per point in a DEM's sampler)
+    # Per row of blocks: each block takes its decision; lattice blocks then go strip by strip
+    # (STRIP_ROWS rows: the strip's lon/lat, heights and coordinates stay in the CPU cache),
+    # interpolating their pixels' lon/lat into strip-wide arrays, the DEM sampled once per
+    # strip (DEM heights are pointwise: batching does not change a bit), then each block
+    # interpolating its image coordinates.
     for bi in range(r0 // B, (r1 - 1) // B + 1):
         lo_r, hi_r = max(r0, bi * B), min(r1, (bi + 1) * B)
-        band = (slice(lo_r - r0, hi_r - r0), slice(None))
-        lon_w = np.empty(out_r[band].shape)  # lattice blocks write theirs, others NaN
-        lat_w = np.empty(out_r[band].shape)
         pending = []
+        blank = []  # window columns of blocks without lattice: NaN lon/lat in the strips
         for bj in range(c0 // B, (c1 - 1) // B + 1):
             block = _Block(ctx, bi, bj, B, float(tolerance_px), int(check_points), seed)
             lo_c, hi_c = max(c0, bj * B), min(c1, (bj + 1) * B)
             part = (lo_r - bi * B, hi_r - bi * B, lo_c - bj * B, hi_c - bj * B)
             if block.h_range is not None and block.spacing > 0:
-                block.lonlat_into(lon_w, lat_w, *part, 0, lo_c - c0)
                 pending.append((block, part))
             else:
                 block.fill(out_r, out_c, *part, lo_r - r0, lo_c - c0)
-                lon_w[:, lo_c - c0:hi_c - c0] = np.nan
-                lat_w[:, lo_c - c0:hi_c - c0] = np.nan
-        if pending:
-            h_w = ctx.height(lon_w, lat_w)
-            for block, (a, b, c, d) in pending:
+                blank.append(slice(lo_c - c0, hi_c - c0))
+        if not pending:
+            continue
+        for s_lo in range(lo_r, hi_r, STRIP_ROWS):
+            s_hi = min(s_lo + STRIP_ROWS, hi_r)
+            lon_s = np.empty((s_hi - s_lo, c1 - c0))
+            lat_s = np.empty((s_hi - s_lo, c1 - c0))
+            for cols in blank:
+                lon_s[:, cols] = np.nan
+                lat_s[:, cols] = np.nan
+            a, b = s_lo - bi * B, s_hi - bi * B  # block-local rows of the strip
+            for block, (_, _, c, d) in pending:
+                block.lonlat_into(lon_s, lat_s, a, b, c, d, 0, block.c0 + c - c0)
+            h_s = ctx.height(lon_s, lat_s)
+            for block, (_, _, c, d) in pending:
                 dst_c = block.c0 + c - c0
-                h = np.ascontiguousarray(h_w[:, dst_c:dst_c + d - c])
-                block.fill_lattice(out_r, out_c, h, a, b, c, d, lo_r - r0, dst_c)
+                h = np.ascontiguousarray(h_s[:, dst_c:dst_c + d - c])
+                block.fill_lattice(out_r, out_c, h, a, b, c, d, s_lo - r0, dst_c)
     valid = np.isfinite(out_r)
     valid &= np.isfinite(out_c)
     if not valid.all():
