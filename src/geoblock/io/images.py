@@ -237,15 +237,63 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
                     ac.add(nxt)
                 bar.update()
                 yield r0, c0, block
+        elif _local_threads(scheduler):
+            # dask's threaded scheduler, pipelined: a pool of one thread per core computes
+            # chunks while this thread writes the finished ones (dask.compute on batches
+            # would leave the cores idle during the writes and at each batch's tail)
+            yield from _iter_threads(items, in_flight, bar)
         else:
             for k in range(0, len(items), in_flight):
                 batch = items[k:k + in_flight]
                 blocks = dask.compute(*[d for _, _, d in batch], scheduler=scheduler)
-                for (r0, c0, _), block in zip(batch, blocks):
+                for (r0, c0, _), block in zip(batch, blocks, strict=True):
                     bar.update()
                     yield r0, c0, block
     finally:
         bar.close()
+
+
+def _local_threads(scheduler: Any) -> bool:
+    """Whether ``scheduler`` means dask's local threaded scheduler (the default for arrays)."""
+    import dask
+
+    if scheduler is None:
+        scheduler = dask.config.get("scheduler", None)
+    return scheduler is None or scheduler in ("threads", "threading")
+
+
+def _compute_one(delayed: Any) -> Any:
+    import dask
+
+    return dask.compute(delayed, scheduler="synchronous")[0]
+
+
+def _iter_threads(items: list, in_flight: int, bar: Any):
+    """:func:`_iter_blocks` on a thread pool with at most ``in_flight`` chunks in memory."""
+    import concurrent.futures as cf
+
+    pending = deque(items)
+    running: dict = {}
+    with cf.ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="geoblock") as pool:
+        def submit() -> None:
+            r0, c0, d = pending.popleft()
+            running[pool.submit(_compute_one, d)] = (r0, c0)
+
+        try:
+            while pending and len(running) < in_flight:
+                submit()
+            while running:
+                done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+                for fut in done:
+                    r0, c0 = running.pop(fut)
+                    block = fut.result()
+                    if pending:
+                        submit()
+                    bar.update()
+                    yield r0, c0, block
+        finally:
+            for fut in running:
+                fut.cancel()
 
 
 def write_ortho(
