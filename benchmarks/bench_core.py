@@ -55,7 +55,9 @@ def main() -> None:
     inv = pyproj.Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True)
     x, y, z = coords.geodetic_to_ecef(lon, lat, h)
     print(f"geoblock {geoblock.__version__}, numpy {np.__version__}, pyproj {pyproj.__version__}")
-    measure(f"geodetic -> ECEF, geoblock ({n} pts)", lambda: coords.geodetic_to_ecef(lon, lat, h), n)
+    measure(
+        f"geodetic -> ECEF, geoblock ({n} pts)", lambda: coords.geodetic_to_ecef(lon, lat, h), n
+    )
     measure(f"geodetic -> ECEF, pyproj ({n} pts)", lambda: fwd.transform(lon, lat, h), n)
     measure(f"ECEF -> geodetic, geoblock ({n} pts)", lambda: coords.ecef_to_geodetic(x, y, z), n)
     measure(f"ECEF -> geodetic, pyproj ({n} pts)", lambda: inv.transform(x, y, z), n)

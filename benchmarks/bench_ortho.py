@@ -412,7 +412,10 @@ def main() -> None:
                 print(f"| {m} | unavailable: {r['error']} | | |")
                 continue
             mp = size * size / r["seconds"] / 1e6 if r["seconds"] else float("nan")
-            print(f"| {m} | {_fmt(r['seconds'], '.2f')} | {_fmt(mp)} | {_fmt(r['peak_mib'], '.0f')} |")
+            print(
+                f"| {m} | {_fmt(r['seconds'], '.2f')} | {_fmt(mp)} "
+                f"| {_fmt(r['peak_mib'], '.0f')} |"
+            )
         g = results.get("geoblock", {})
         if "seconds" in g:
             mp = size * size / g["seconds"] / 1e6

@@ -37,7 +37,6 @@ import argparse
 import math
 import os
 import platform
-import statistics
 import sys
 import tempfile
 import time

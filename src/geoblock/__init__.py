@@ -10,7 +10,6 @@ from geoblock.dem import localize
 from geoblock.errors import GeoblockError, GeoblockWarning
 from geoblock.hookspecs import hookimpl
 from geoblock.io import open_dem, open_model, read_points, write_model, write_points
-from geoblock.ortho import orthorectify
 from geoblock.models import (
     ImageCorrection,
     ParameterSet,
@@ -19,6 +18,7 @@ from geoblock.models import (
     from_dict,
     get_registry,
 )
+from geoblock.ortho import orthorectify
 from geoblock.typing import EcefCoords, GroundCoords, ImageCoords, LineOfSight, Status
 
 try:

@@ -189,7 +189,8 @@ def enu_offsets(
 
 
 def enu_to_ecef_jacobian(lon: ArrayLike, lat: ArrayLike) -> Float64Array:
-    """d(x, y, z)/d(e, n, u) at ``(lon, lat)``: the transpose of :func:`enu_rotation`, (*S, 3, 3)."""
+    """d(x, y, z)/d(e, n, u) at ``(lon, lat)``: the transpose of :func:`enu_rotation`,
+    (*S, 3, 3)."""
     return np.swapaxes(enu_rotation(lon, lat), -1, -2)
 
 
@@ -318,7 +319,9 @@ class LocalFrame:
         xyz = enu @ self.rotation + self.origin_ecef
         return EcefCoords(xyz[..., 0], xyz[..., 1], xyz[..., 2])
 
-    def from_geodetic(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[Float64Array, ...]:
+    def from_geodetic(
+        self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+    ) -> tuple[Float64Array, ...]:
         """Geodetic ``(lon, lat, h)`` -> local ``(e, n, u)`` metres."""
         return self.from_ecef(*geodetic_to_ecef(lon, lat, h))
 

@@ -79,7 +79,9 @@ def test_collinear_gcps_for_order_1_name_the_undetermined_parameters(affine_came
     rng = np.random.default_rng(0)
     t = np.linspace(0, 1, 8)
     gcps = simulate(affine_camera, 1, 8, rng, rows=100 + 800 * t, cols=50 + 1000 * t)
-    with pytest.raises(SingularSystemError, match=r"cannot determine parameters .*a1, a2, .*b1, b2") as err:
+    with pytest.raises(
+        SingularSystemError, match=r"cannot determine parameters .*a1, a2, .*b1, b2"
+    ) as err:
         resect(ImageCorrection(affine_camera, 1), gcps)
     # the line passes near the image centre, so the shifts a0, b0 are (almost) determined
     assert {"a1", "a2", "b1", "b2"} <= set(err.value.undetermined)

@@ -128,7 +128,9 @@ def test_refine_write_reports_plugin_messages(runner, cli, model_path, points, t
     def fake(model, path, format=None, **options):
         calls.append((format, str(path)))
         if format == "fake-rpc":
-            warnings.warn("RPC00B approximate (refit): max error 1e-07 px", GeoblockWarning)
+            warnings.warn(
+                "RPC00B approximate (refit): max error 1e-07 px", GeoblockWarning, stacklevel=2
+            )
             return path
         return real(model, path, format=format, **options)
 

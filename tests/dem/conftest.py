@@ -20,7 +20,10 @@ def egm96_path(data_dir):
 
 @pytest.fixture(scope="session")
 def mnt_geoid(data_dir):
-    return data_dir / "shareloc" / "geoide" / "P1BP--2017030824934340CP" / "MNT_P1BP--2017030824934340CP.tif"
+    return (
+        data_dir / "shareloc" / "geoide" / "P1BP--2017030824934340CP"
+        / "MNT_P1BP--2017030824934340CP.tif"
+    )
 
 
 def write_tif(path, array, transform, crs, nodata=None):

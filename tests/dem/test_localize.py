@@ -21,7 +21,6 @@ import geoblock
 from geoblock import ParameterSet, SensorModelBase, Status
 from geoblock.dem import ConstantDem, GridDem
 from geoblock.errors import ConvergenceWarning, GeoblockError, NoIntersectionWarning
-from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
 TMERC = "+proj=tmerc +lat_0=43.7 +lon_0=7.05 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
 GSD = 10.0
@@ -51,7 +50,10 @@ class LineCamera(SensorModelBase):
         return cls(data["k"], data["x0"], data["y0"])
 
     def xy(self, row, col, h):
-        return self.x0 + GSD * np.asarray(col) - self.k * np.asarray(h), self.y0 - GSD * np.asarray(row)
+        return (
+            self.x0 + GSD * np.asarray(col) - self.k * np.asarray(h),
+            self.y0 - GSD * np.asarray(row),
+        )
 
     def _image_to_ground(self, row, col, h):
         x, y = self.xy(row, col, h)

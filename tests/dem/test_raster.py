@@ -7,14 +7,13 @@ import pickle
 import threading
 
 import numpy as np
-
-from geoblock._affine import apply as affine_apply
 import pytest
 import rasterio
 from affine import Affine
 from rasterio.warp import Resampling, reproject
 
 import geoblock
+from geoblock._affine import apply as affine_apply
 from geoblock.dem import BLOCK_CACHE, GridDem, MosaicDem, RasterDem
 from geoblock.errors import DemCoverageError, DemError
 from geoblock.typing import Status
@@ -173,7 +172,9 @@ def test_edge_half_pixel_is_edge_extended(utm_tif):
     from geoblock import coords
 
     # a quarter pixel inside the top-left corner: the corner post's value
-    lon, lat = coords.transformer("EPSG:32631", "EPSG:4326").transform(*(affine_apply(t, *(0.25, 0.25))))
+    lon, lat = coords.transformer("EPSG:32631", "EPSG:4326").transform(
+        *(affine_apply(t, *(0.25, 0.25)))
+    )
     assert float(dem.height(lon, lat)) == pytest.approx(float(arr[0, 0]), abs=1e-9)
 
 

@@ -165,7 +165,7 @@ def test_lattice_point_kernels_match_loops():
         pc = rng.integers(0, 256, 300)
         fast = lattice._bilinear_points(nodes, pr, pc, s)
         ref = np.array([lattice._bilinear(nodes, int(a), int(b), 1, 1, s)[0, 0]
-                        for a, b in zip(pr, pc)])
+                        for a, b in zip(pr, pc, strict=True)])
         assert fast.tobytes() == ref.tobytes()
         for pairs in (1, 2, 4):
             rn = rng.normal(size=(2 * pairs + 1, n, n)) * 1000

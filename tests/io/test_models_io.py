@@ -89,7 +89,9 @@ def test_write_errors(tmp_path, affine_camera):
 
 def test_not_json_safe_model_is_refused(tmp_path):
     model = ConstantVelocityPushbroom.example()
-    bad = type("Bad", (ConstantVelocityPushbroom,), {"name": "bad", "to_dict": lambda self: {"x": np.nan}})
+    bad = type(
+        "Bad", (ConstantVelocityPushbroom,), {"name": "bad", "to_dict": lambda self: {"x": np.nan}}
+    )
     with pytest.raises(ModelFormatError, match="not JSON-safe"):
         geoblock.write_model(bad.example(), tmp_path / "m.json")
     assert model  # the good one still writes

@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from geoblock import Status
-from geoblock.errors import ConvergenceWarning, GeoblockError, OutOfBoundsWarning, ShapeMismatchError
+from geoblock.errors import (
+    ConvergenceWarning,
+    GeoblockError,
+    OutOfBoundsWarning,
+    ShapeMismatchError,
+)
 from geoblock.testing.synthetic import AffineCamera
 
 

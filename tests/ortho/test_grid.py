@@ -24,7 +24,8 @@ from geoblock.testing.synthetic import AffineCamera
 # ---------------------------------------------------------------------- real gdalwarp
 def _libgdal():
     """rasterio's own libgdal, through ctypes (GDALWarp is the library behind gdalwarp)."""
-    libs = glob.glob(os.path.join(os.path.dirname(os.path.dirname(rasterio.__file__)), "rasterio.libs", "libgdal*"))
+    site_packages = os.path.dirname(os.path.dirname(rasterio.__file__))
+    libs = glob.glob(os.path.join(site_packages, "rasterio.libs", "libgdal*"))
     if not libs:
         pytest.skip("rasterio's bundled libgdal not found (GDALWarp needed)")
     lib = ctypes.CDLL(libs[0])
@@ -35,7 +36,9 @@ def _libgdal():
     lib.GDALWarpAppOptionsNew.argtypes = [ctypes.POINTER(cp), vp]
     lib.GDALWarpAppOptionsFree.argtypes = [vp]
     lib.GDALWarp.restype = vp
-    lib.GDALWarp.argtypes = [cp, vp, ctypes.c_int, ctypes.POINTER(vp), vp, ctypes.POINTER(ctypes.c_int)]
+    lib.GDALWarp.argtypes = [
+        cp, vp, ctypes.c_int, ctypes.POINTER(vp), vp, ctypes.POINTER(ctypes.c_int)
+    ]
     lib.GDALGetRasterXSize.argtypes = lib.GDALGetRasterYSize.argtypes = [vp]
     lib.GDALGetGeoTransform.argtypes = [vp, ctypes.POINTER(ctypes.c_double)]
     lib.GDALClose.argtypes = [vp]
@@ -47,10 +50,12 @@ def gdalwarp_grid(tmp_path, crs, bounds, res, tap):
     lib = _libgdal()
     xmin, ymin, xmax, ymax = bounds
     src_path = str(tmp_path / "src.tif")
+    transform = Affine(abs(xmax - xmin) / 4, 0, xmin, 0, -abs(ymax - ymin) / 4, ymax)
     with rasterio.open(src_path, "w", driver="GTiff", width=4, height=4, count=1, dtype="uint8",
-                       crs=crs, transform=Affine(abs(xmax - xmin) / 4, 0, xmin, 0, -abs(ymax - ymin) / 4, ymax)) as ds:
+                       crs=crs, transform=transform) as ds:
         ds.write(np.ones((1, 4, 4), np.uint8))
-    args = [b"-of", b"MEM", b"-t_srs", crs.encode(), b"-tr", repr(res[0]).encode(), repr(res[1]).encode(),
+    args = [b"-of", b"MEM", b"-t_srs", crs.encode(),
+            b"-tr", repr(res[0]).encode(), repr(res[1]).encode(),
             b"-te", *(repr(float(v)).encode() for v in bounds)] + ([b"-tap"] if tap else [])
     argv = (ctypes.c_char_p * (len(args) + 1))(*args, None)
     opts = lib.GDALWarpAppOptionsNew(argv, None)
@@ -186,7 +191,8 @@ def test_chunks_cover_grid_once_row_major(rows, cols, size):
 
 
 @settings(max_examples=60, deadline=None)
-@given(r0=st.integers(-40, 39), r1=st.integers(-40, 40), c0=st.integers(-60, 59), c1=st.integers(-60, 60))
+@given(r0=st.integers(-40, 39), r1=st.integers(-40, 40),
+       c0=st.integers(-60, 59), c1=st.integers(-60, 60))
 def test_slicing_like_numpy(r0, r1, c0, c1):
     ref = np.empty(GRID.shape)[r0:r1, c0:c1]
     if ref.size == 0:

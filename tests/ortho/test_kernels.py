@@ -25,7 +25,9 @@ def _gdal_warp(src, fx, fy, resampling):
 
 
 @pytest.mark.parametrize(("kernel", "resampling"), [
-    ("nearest", Resampling.nearest), ("bilinear", Resampling.bilinear), ("bicubic", Resampling.cubic),
+    ("nearest", Resampling.nearest),
+    ("bilinear", Resampling.bilinear),
+    ("bicubic", Resampling.cubic),
 ])
 @pytest.mark.parametrize(("fx", "fy"), [(0.25, 0.6), (0.71, 0.13), (0.5, 0.5), (0.0, 0.37)])
 def test_identical_to_gdal_warper(kernel, resampling, fx, fy):
@@ -38,13 +40,16 @@ def test_identical_to_gdal_warper(kernel, resampling, fx, fy):
     # valid wherever the whole kernel is inside: every point at least KERNEL_RADIUS from the edge
     assert valid[2:-2, 2:-2].all()
     np.testing.assert_allclose(values[0, 2:-2, 2:-2], ref[2:-2, 2:-2], rtol=0, atol=1e-9)
-    if kernel != "bicubic":  # GDAL's cubic falls back to bilinear when its 4 x 4 box leaves the raster
+    # GDAL's cubic falls back to bilinear when its 4 x 4 box leaves the raster
+    if kernel != "bicubic":
         np.testing.assert_allclose(values[0][valid], ref[valid], rtol=0, atol=1e-9)
 
 
 def test_nearest_is_the_containing_pixel():
     src = np.arange(20.0).reshape(1, 4, 5)
-    v, ok = resample(src, [0.49, 0.5, -0.5, 3.49, 3.5, -0.51], [1.0, 1.0, 0.0, 4.49, 0.0, 0.0], "nearest")
+    v, ok = resample(
+        src, [0.49, 0.5, -0.5, 3.49, 3.5, -0.51], [1.0, 1.0, 0.0, 4.49, 0.0, 0.0], "nearest"
+    )
     assert ok.tolist() == [True, True, True, True, False, False]
     assert v[0, :4].tolist() == [1.0, 6.0, 0.0, 19.0]
 
@@ -162,7 +167,8 @@ def test_sinc_reproduces_band_limited_signal():
 
     def f(y, x):
         return (np.sin(2 * np.pi * 0.21 * x + 0.3) * np.cos(2 * np.pi * 0.17 * y)
-                + 0.5 * np.cos(2 * np.pi * (0.11 * x + 0.23 * y) + 1.0) + 0.2 * np.sin(2 * np.pi * 0.04 * y))
+                + 0.5 * np.cos(2 * np.pi * (0.11 * x + 0.23 * y) + 1.0)
+                + 0.2 * np.sin(2 * np.pi * 0.04 * y))
 
     src = f(yy, xx)[None]
     rng = np.random.default_rng(5)

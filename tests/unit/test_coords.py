@@ -116,7 +116,9 @@ def test_geodetic_jacobian_matches_finite_differences():
         minus = [lon, lat, h]
         plus[k] += step
         minus[k] -= step
-        fd = (np.array(coords.geodetic_to_ecef(*plus)) - np.array(coords.geodetic_to_ecef(*minus))) / (2 * step)
+        fd = (
+            np.array(coords.geodetic_to_ecef(*plus)) - np.array(coords.geodetic_to_ecef(*minus))
+        ) / (2 * step)
         assert np.allclose(jac[:, k], fd, rtol=1e-7, atol=1e-6)
 
 
@@ -178,7 +180,9 @@ def test_non_finite_in_nan_out_silently():
 
 
 def test_ecef_to_geodetic_jacobian_inverts_the_forward_one():
-    lon, lat, h = np.array([7.0, -120.0, 179.9]), np.array([43.7, -60.0, 0.1]), np.array([0.0, 5000.0, 7e5])
+    lon = np.array([7.0, -120.0, 179.9])
+    lat = np.array([43.7, -60.0, 0.1])
+    h = np.array([0.0, 5000.0, 7e5])
     inv = coords.ecef_to_geodetic_jacobian(lon, lat, h)
     fwd = coords.geodetic_to_ecef_jacobian(lon, lat, h)
     assert np.allclose(inv @ fwd, np.eye(3), atol=1e-10)

@@ -89,7 +89,9 @@ def test_two_plugins_registering_one_name_is_an_error_naming_both(site):
         {"gb_two": MODEL_PLUGIN.format(cls="Two", model="same-name")},
     )
     pm = create_plugin_manager()
-    with pytest.raises(DuplicateModelError, match=r"'same-name'.*'one'.*gb_one\.One.*'two'.*gb_two\.Two") as err:
+    with pytest.raises(
+        DuplicateModelError, match=r"'same-name'.*'one'.*gb_one\.One.*'two'.*gb_two\.Two"
+    ) as err:
         build_registry(pm)
     assert isinstance(err.value, geoblock.GeoblockError)
 

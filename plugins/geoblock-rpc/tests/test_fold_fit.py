@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from geoblock import ImageCorrection
-from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 from geoblock_rpc import RpcModel
 from geoblock_rpc.fit import check_grid, fit_rpc, image_grid
 from geoblock_rpc.fold import FoldReport, fold_correction, is_rpc_based, rpc_for
+
+from geoblock import ImageCorrection
+from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
 
 @pytest.fixture(scope="module")

@@ -7,14 +7,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from geoblock_rpc import RpcModel, reference
 
 import geoblock
 from geoblock import Status
 from geoblock.models import SensorModelBase
 from geoblock.testing import SensorModelContract
-from geoblock_rpc import RpcModel, reference
 
-DATA = Path(os.environ.get("GEOBLOCK_TEST_DATA", Path(__file__).resolve().parents[4] / "shared" / "data"))
+DATA = Path(
+    os.environ.get(
+        "GEOBLOCK_TEST_DATA", Path(__file__).resolve().parents[4] / "shared" / "data"
+    )
+)
 
 #: RPC files of every format in ../shared/data (the readers' tests check each opens)
 FILES = [
@@ -133,7 +137,9 @@ def test_points_outside_the_domain_get_a_status_not_an_exception():
     assert np.isfinite(row[0]) and np.isnan(row[1:]).all()
     with pytest.warns(geoblock.errors.OutOfBoundsWarning, match="4 of 5 points"):
         model.project(lon, lat, h)
-    _, status = model.backproject_with_status([0.0, -30000.0, 0.0], [0.0, 0.0, 0.0], [500.0, 500.0, 1e5])
+    _, status = model.backproject_with_status(
+        [0.0, -30000.0, 0.0], [0.0, 0.0, 0.0], [500.0, 500.0, 1e5]
+    )
     assert status[0] == Status.CONVERGED and status[1] != Status.CONVERGED
     assert status[2] == Status.OUT_OF_DOMAIN
     _, status = model.project_with_status([np.nan, 7.05], 43.7, 500.0)

@@ -9,18 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
+from geoblock_rpc import plugin
+from geoblock_rpc.model import RpcModel
+from geoblock_rpc.readers import RPC00A_TO_B, read_rpc
+from geoblock_rpc.rpc00b import Rpc00b
 from rasterio.errors import NotGeoreferencedWarning
 from rasterio.rpc import RPC
 from rasterio.transform import RPCTransformer
 
 import geoblock
 from geoblock.errors import ModelFormatError, UnsupportedFormatError
-from geoblock_rpc import plugin
-from geoblock_rpc.model import RpcModel
-from geoblock_rpc.readers import RPC00A_TO_B, read_rpc
-from geoblock_rpc.rpc00b import Rpc00b
-
-
 
 #: relative path -> (exception, fragments the message must hold besides the file name)
 NEGATIVE = {
@@ -29,7 +27,8 @@ NEGATIVE = {
     "shareloc/rpc/fake_rpc.txt": (ModelFormatError, ["no RPC coefficients", "LINE_OFF"]),
     "stereopipeline/tests/dg_example2.xml": (ModelFormatError, ["without an <RPB><IMAGE>"]),
     "cosicorr3d/test_dataset/SPOT6.XML":
-        (ModelFormatError, ["no RPC coefficients", "RPC_SPOT6_P_201809151819247_SEN_4555226101.XML"]),
+        (ModelFormatError,
+         ["no RPC coefficients", "RPC_SPOT6_P_201809151819247_SEN_4555226101.XML"]),
 }
 
 #: 178609: shareloc inverse_loc (lon, lat, 0) -> (col 100.5, row 200.5) in its top-left
@@ -226,7 +225,7 @@ def test_ossim_polynomial_format_a_is_reordered(data_dir, tmp_path):
     # reorder each polynomial from B to A so that reading it as A gives the B model back
     for poly in ("line_num", "line_den", "samp_num", "samp_den"):
         b = [float(getattr(ref, poly)[i]) for i in range(20)]
-        for a_index, b_index in enumerate(RPC00A_TO_B):
+        for a_index, _ in enumerate(RPC00A_TO_B):
             text = text.replace(f"{poly}_coeff_{a_index:02d}:", f"@{poly}_{a_index}:")
         out = []
         for line in text.splitlines():

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from geoblock_rpc import Rpc00b, RpcModel
+from geoblock_rpc.fold import rpc_for
 
 import geoblock
 from geoblock import ImageCorrection
 from geoblock.adjust import ControlPoints, resect
 from geoblock.errors import GeoblockError, TooFewPointsError
-from geoblock_rpc import Rpc00b, RpcModel
-from geoblock_rpc.fold import rpc_for
 
 REPO = Path(__file__).resolve().parents[3]
 DATA_DIR = Path(os.environ.get("GEOBLOCK_TEST_DATA", REPO.parent / "shared" / "data"))

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from geoblock_rpc import RpcModel
 
 import geoblock
 from geoblock.errors import GeoblockWarning, ModelFormatError
-from geoblock_rpc import RpcModel
 
 
 def _agree(a, b, n=2000):
@@ -22,7 +22,6 @@ def _agree(a, b, n=2000):
 @pytest.mark.parametrize("fmt,name", [("rpc-txt", "m_RPC.TXT"), ("rpb", "m.RPB")])
 def test_rpcv0_folds_exactly_and_silently(tmp_path, fmt, name):
     refined = geoblock.ImageCorrection(RpcModel.example(), 0, [2.5, -1.25])
-    with_warning = []
     with pytest.warns(GeoblockWarning, match="exact") as with_warning:
         geoblock.write_model(refined, tmp_path / name, format=fmt)
     assert with_warning
@@ -45,7 +44,9 @@ def test_a_refit_worse_than_the_limit_is_refused(tmp_path):
     refined = geoblock.ImageCorrection(
         RpcModel.example(), 2, [1.0, 0.5, -0.3, 0.2, -0.1, 0.05, -1.0, 0.2, 0.4, -0.1, 0.1, 0.02]
     )
-    with pytest.raises(ModelFormatError, match="does not fold into RPC00B exactly.*write the model as JSON"):
+    with pytest.raises(
+        ModelFormatError, match="does not fold into RPC00B exactly.*write the model as JSON"
+    ):
         geoblock.write_model(refined, tmp_path / "m_RPC.TXT", format="rpc-txt",
                              max_refit_error_px=1e-15)
     assert not (tmp_path / "m_RPC.TXT").exists()

@@ -8,6 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
+from geoblock_rpc.model import RpcModel
+from geoblock_rpc.readers import _parse_rpb, _parse_rpc_txt, read_rpc
+from geoblock_rpc.rpc00b import Rpc00b
+from geoblock_rpc.writers import rpb_text, rpc_txt_text
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rasterio.errors import NotGeoreferencedWarning
@@ -16,10 +20,6 @@ from rasterio.transform import RPCTransformer
 import geoblock
 from geoblock.errors import ModelFormatError, UnsupportedFormatError
 from geoblock.testing.synthetic import AffineCamera
-from geoblock_rpc.model import RpcModel
-from geoblock_rpc.readers import _parse_rpb, _parse_rpc_txt, read_rpc
-from geoblock_rpc.rpc00b import Rpc00b
-from geoblock_rpc.writers import rpb_text, rpc_txt_text
 
 SOURCES = [
     "gdal-autotest/gcore/data/test_rpc.txt",

@@ -8,12 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
-from geoblock.errors import GeoblockError, ModelFormatError
-from geoblock.io import open_model
-from geoblock.models.linescan import LinescanModel
 from geoblock_spot.dimap import (
     REQUIRED_FIELDS,
     DimapFormatError,
@@ -21,6 +15,12 @@ from geoblock_spot.dimap import (
     is_spot_dimap,
     read_dimap,
 )
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from geoblock.errors import GeoblockError, ModelFormatError
+from geoblock.io import open_model
+from geoblock.models.linescan import LinescanModel
 
 SPOT = {i: f"cosicorr3d/test_dataset/SPOT{i}.DIM" for i in range(1, 6)}
 ASP = "stereopipeline/tests/spot_example1.xml"

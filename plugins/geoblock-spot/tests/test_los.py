@@ -6,11 +6,6 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-
-from geoblock.errors import ModelFormatError
-from geoblock.io import open_model, write_model
-from geoblock.models.linescan import LinescanModel, orbital_frame
-from geoblock.testing import SensorModelContract
 from geoblock_spot.dimap import DimapFormatError, read_dimap
 from geoblock_spot.los import (
     AXIS_PERMUTATION,
@@ -21,6 +16,11 @@ from geoblock_spot.los import (
     simplified_model_check,
     spot_dimap_model,
 )
+
+from geoblock.errors import ModelFormatError
+from geoblock.io import open_model, write_model
+from geoblock.models.linescan import LinescanModel, orbital_frame
+from geoblock.testing import SensorModelContract
 
 SPOT = {i: f"cosicorr3d/test_dataset/SPOT{i}.DIM" for i in range(1, 6)}
 

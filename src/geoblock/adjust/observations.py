@@ -50,7 +50,9 @@ class ControlPoints:
         ids = np.atleast_1d(np.asarray(self.id)).astype(str)
         n = ids.shape[0]
         if ids.ndim != 1:
-            raise ObservationError(f"ControlPoints: id must be one-dimensional, got shape {ids.shape}")
+            raise ObservationError(
+                f"ControlPoints: id must be one-dimensional, got shape {ids.shape}"
+            )
         object.__setattr__(self, "id", ids)
         for f in fields(self)[1:]:
             raw = np.asarray(getattr(self, f.name), dtype=np.float64)

@@ -251,7 +251,8 @@ def _check_projected(status: np.ndarray, gcps: ControlPoints, model: SensorModel
     bad = status != Status.CONVERGED
     if bad.any():
         listed = ", ".join(
-            f"{i} ({Status(s).name.lower()})" for i, s in zip(gcps.id[bad][:5], status[bad][:5], strict=True)
+            f"{i} ({Status(s).name.lower()})"
+            for i, s in zip(gcps.id[bad][:5], status[bad][:5], strict=True)
         )
         raise AdjustmentError(
             f"resect: model {model.name!r} cannot project GCP(s) {listed}; check their "
@@ -288,7 +289,9 @@ def _sqrt_weight(weight: np.ndarray) -> np.ndarray:
     return (vectors * np.sqrt(values)).T
 
 
-def _solve(design: np.ndarray, rhs: np.ndarray, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+def _solve(
+    design: np.ndarray, rhs: np.ndarray, names: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares step and ``N^-1`` by SVD of the column-scaled design; rank check."""
     norms = np.linalg.norm(design, axis=0)
     zero = norms == 0

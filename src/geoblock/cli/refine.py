@@ -29,7 +29,9 @@ def _write_spec(ctx: click.Context, param: click.Parameter, values: tuple[str, .
         if not sep:
             fmt, path = None, value
         if (sep and not fmt.strip()) or not path.strip():
-            raise click.BadParameter(f"expected FORMAT:PATH (for example json:out.json), got {value!r}")
+            raise click.BadParameter(
+                f"expected FORMAT:PATH (for example json:out.json), got {value!r}"
+            )
         out.append((fmt.strip() if fmt else None, path))
     return tuple(out)
 

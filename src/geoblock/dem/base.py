@@ -63,7 +63,9 @@ class DemBase(abc.ABC):
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return json.dumps(self.to_dict(), sort_keys=True) == json.dumps(other.to_dict(), sort_keys=True)  # type: ignore[attr-defined]
+        mine = json.dumps(self.to_dict(), sort_keys=True)  # type: ignore[attr-defined]
+        theirs = json.dumps(other.to_dict(), sort_keys=True)  # type: ignore[attr-defined]
+        return mine == theirs
 
     def __hash__(self) -> int:
         return hash(json.dumps(self.to_dict(), sort_keys=True))

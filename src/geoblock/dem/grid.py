@@ -34,7 +34,9 @@ def _is_lonlat(crs: pyproj.CRS) -> bool:
     return geod is not None and geod.ellipsoid.name == "WGS 84"
 
 
-def lonlat_to_crs(crs: pyproj.CRS, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lonlat_to_crs(
+    crs: pyproj.CRS, lon: np.ndarray, lat: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``(x, y)`` in ``crs`` (its horizontal part) of WGS84 ``lon, lat`` (always_xy order)."""
     horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
     if _is_lonlat(horizontal):

@@ -14,7 +14,9 @@ __all__ = ["open_model", "write_model"]
 _FORMATS_BY_SUFFIX = {".json": "json"}
 
 
-def open_model(path: str | os.PathLike[str], model: str | None = None, **options: Any) -> SensorModel:
+def open_model(
+    path: str | os.PathLike[str], model: str | None = None, **options: Any
+) -> SensorModel:
     """Open a sensor model from a metadata file.
 
     Every plugin's ``geoblock_read_sensor_model`` hook is asked in turn (specific readers
@@ -105,7 +107,9 @@ def write_model(
                 f"{path.suffix!r}; pass format= (for example 'json')"
             )
     if not path.parent.is_dir():
-        raise GeoblockIOError(f"cannot write {str(path)!r}: directory {str(path.parent)!r} does not exist")
+        raise GeoblockIOError(
+            f"cannot write {str(path)!r}: directory {str(path.parent)!r} does not exist"
+        )
     pm = get_plugin_manager()
     written = pm.hook.geoblock_write_sensor_model(
         model=model, path=path, format=format, options=options

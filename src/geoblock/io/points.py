@@ -114,7 +114,9 @@ def _read_text(source: str | os.PathLike[str] | IO[str]) -> tuple[str, str]:
         raise GeoblockIOError(f"cannot read point file {str(path)!r}: {exc.strerror}") from exc
 
 
-def write_points(target: str | os.PathLike[str] | IO[str], columns: Mapping[str, np.ndarray]) -> None:
+def write_points(
+    target: str | os.PathLike[str] | IO[str], columns: Mapping[str, np.ndarray]
+) -> None:
     """Write column arrays as CSV; floats use the shortest text that round-trips exactly."""
     names = list(columns)
     arrays = [np.asarray(columns[c]).ravel() for c in names]
@@ -142,4 +144,6 @@ def write_points(target: str | os.PathLike[str] | IO[str], columns: Mapping[str,
             with open(target, "w", encoding="utf-8", newline="") as f:
                 emit(f)
         except OSError as exc:
-            raise GeoblockIOError(f"cannot write point file {str(target)!r}: {exc.strerror}") from exc
+            raise GeoblockIOError(
+                f"cannot write point file {str(target)!r}: {exc.strerror}"
+            ) from exc

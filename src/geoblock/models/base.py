@@ -427,13 +427,17 @@ class SensorModelBase(abc.ABC):
 
     def _forward_flat(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
         """(N, 2) image coordinates from the ground->image kernel; NaN where it fails."""
-        r, c, s = _unpack(self._ground_to_image(lon, lat, h), lon.shape[0], self, "_ground_to_image")
+        r, c, s = _unpack(
+            self._ground_to_image(lon, lat, h), lon.shape[0], self, "_ground_to_image"
+        )
         out = np.stack([r, c], axis=-1)
         out[s != _CONVERGED] = np.nan
         return out
 
     def _backward_flat(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
-        lo, la, s = _unpack(self._image_to_ground(row, col, h), row.shape[0], self, "_image_to_ground")
+        lo, la, s = _unpack(
+            self._image_to_ground(row, col, h), row.shape[0], self, "_image_to_ground"
+        )
         bad = s != _CONVERGED
         lo = np.where(bad, np.nan, lo)
         la = np.where(bad, np.nan, la)
@@ -480,7 +484,9 @@ def _unpack(result: tuple, n: int, model: object, kernel: str) -> tuple:
             raise GeoblockError(
                 f"{type(model).__qualname__}.{kernel} returned shape {arr.shape} for {n} points"
             )
-    s = np.where((s == _CONVERGED) & ~(np.isfinite(a) & np.isfinite(b)), np.uint8(Status.DIVERGED), s)
+    s = np.where(
+        (s == _CONVERGED) & ~(np.isfinite(a) & np.isfinite(b)), np.uint8(Status.DIVERGED), s
+    )
     return a, b, s
 
 

@@ -134,7 +134,9 @@ class ImageCorrection(SensorModelBase):
         d_v = [zero, zero, one, zero, u, 2 * v][: _N_TERMS[self._order]]
         return (np.stack(terms, -1), np.stack(d_u, -1) / s, np.stack(d_v, -1) / s)
 
-    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _correction(
+        self, r: np.ndarray, c: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(drow, dcol) and the (N, 2, 2) Jacobian of the corrected coordinates wrt (r, c)."""
         n = _N_TERMS[self._order]
         a, b = self._parameters.values[:n], self._parameters.values[n:]

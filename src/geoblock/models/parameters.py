@@ -142,7 +142,9 @@ class ParameterSet:
 
     def with_sigmas(self, sigmas: ArrayLike, covariance: ArrayLike | None = None) -> ParameterSet:
         """A copy with new a-priori sigmas (and optionally a full covariance)."""
-        return ParameterSet(self.names, self.values, self.units, sigmas, self.adjustable, covariance)
+        return ParameterSet(
+            self.names, self.values, self.units, sigmas, self.adjustable, covariance
+        )
 
     def with_adjustable(self, adjustable: ArrayLike | Sequence[str]) -> ParameterSet:
         """A copy with a new adjustable mask, given as booleans (P,) or parameter names."""
@@ -198,5 +200,8 @@ class ParameterSet:
         return hash((self.names, self.values.tobytes()))
 
     def __repr__(self) -> str:
-        body = ", ".join(f"{n}={v:.6g} {u}" for n, v, u in zip(self.names, self.values, self.units, strict=True))
+        body = ", ".join(
+            f"{n}={v:.6g} {u}"
+            for n, v, u in zip(self.names, self.values, self.units, strict=True)
+        )
         return f"ParameterSet({body})"

@@ -136,7 +136,8 @@ class ModelRegistry:
         if not isinstance(data, Mapping) or not isinstance(data.get("model"), str):
             raise SerializationError(
                 "a model dictionary needs a string field 'model' naming the sensor model; got "
-                f"{type(data).__name__} with keys {sorted(data) if isinstance(data, Mapping) else []}"
+                f"{type(data).__name__} with keys "
+                f"{sorted(data) if isinstance(data, Mapping) else []}"
             )
         name = data["model"]
         cls = self.get(name)

@@ -92,7 +92,9 @@ class OutputGrid:
         if not isinstance(t, Affine):
             t = Affine(*tuple(t)[:6])
         if t.b != 0.0 or t.d != 0.0 or not t.a > 0.0 or not t.e < 0.0:
-            raise ValueError(f"OutputGrid: the transform must be north-up (b = d = 0, a > 0, e < 0), got {t!r}")
+            raise ValueError(
+                f"OutputGrid: the transform must be north-up (b = d = 0, a > 0, e < 0), got {t!r}"
+            )
         if not all(math.isfinite(v) for v in tuple(t)[:6]):
             raise ValueError(f"OutputGrid: the transform must be finite, got {t!r}")
         rows, cols = (int(v) for v in self.shape)
@@ -210,7 +212,9 @@ class OutputGrid:
             x, y = np.asarray(x), np.asarray(y)
             ok = np.isfinite(x) & np.isfinite(y)
             if not ok.any():
-                raise ValueError("OutputGrid.for_model: the image outline does not project into the CRS")
+                raise ValueError(
+                    "OutputGrid.for_model: the image outline does not project into the CRS"
+                )
             bounds = (x[ok].min(), y[ok].min(), x[ok].max(), y[ok].max())
         return cls.from_bounds(crs, bounds, resolution, align=align)
 
@@ -250,7 +254,9 @@ class OutputGrid:
         x, y : ndarray, (*S,) float64
             CRS units.
         """
-        r, c = np.broadcast_arrays(np.asarray(rows, dtype=np.float64), np.asarray(cols, dtype=np.float64))
+        r, c = np.broadcast_arrays(
+            np.asarray(rows, dtype=np.float64), np.asarray(cols, dtype=np.float64)
+        )
         return apply(self.transform, c + 0.5, r + 0.5)
 
     def rowcol(self, x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -282,11 +288,15 @@ class OutputGrid:
         Slices follow Python's rules (negative indices, clipping); steps other than 1 and
         empty results raise ``IndexError``.
         """
-        if not (isinstance(key, tuple) and len(key) == 2 and all(isinstance(k, slice) for k in key)):
-            raise TypeError(f"OutputGrid indices must be two slices (grid[r0:r1, c0:c1]), got {key!r}")
+        if not (
+            isinstance(key, tuple) and len(key) == 2 and all(isinstance(k, slice) for k in key)
+        ):
+            raise TypeError(
+                f"OutputGrid indices must be two slices (grid[r0:r1, c0:c1]), got {key!r}"
+            )
         starts = []
         sizes = []
-        for k, n in zip(key, self.shape):
+        for k, n in zip(key, self.shape, strict=True):
             start, stop, step = k.indices(n)
             if step != 1:
                 raise IndexError(f"OutputGrid slices must have step 1, got {k!r}")
@@ -326,7 +336,8 @@ class OutputGrid:
 
     # ------------------------------------------------------------------ value semantics
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe state: ``{"crs": WKT, "transform": [a, b, c, d, e, f], "shape": [rows, cols]}``."""
+        """JSON-safe state:
+        ``{"crs": WKT, "transform": [a, b, c, d, e, f], "shape": [rows, cols]}``."""
         return {
             "crs": self.crs.to_wkt(),
             "transform": [float(v) for v in tuple(self.transform)[:6]],
@@ -336,7 +347,9 @@ class OutputGrid:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> OutputGrid:
         """Rebuild a grid from :meth:`to_dict` output."""
-        return cls(pyproj.CRS.from_wkt(data["crs"]), Affine(*data["transform"]), tuple(data["shape"]))
+        return cls(
+            pyproj.CRS.from_wkt(data["crs"]), Affine(*data["transform"]), tuple(data["shape"])
+        )
 
     def _key(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
@@ -410,5 +423,8 @@ def _gsd(model: Any, rc: float, cc: float, h: float, crs: pyproj.CRS) -> float:
     jr = np.array([x[3] - x[2], y[3] - y[2]])
     gsd = math.sqrt(abs(jc[0] * jr[1] - jc[1] * jr[0]))
     if not (math.isfinite(gsd) and gsd > 0):
-        raise ValueError("OutputGrid.for_model: cannot compute the ground sample distance at the image centre; pass resolution=")
+        raise ValueError(
+            "OutputGrid.for_model: cannot compute the ground sample distance at the image "
+            "centre; pass resolution="
+        )
     return gsd

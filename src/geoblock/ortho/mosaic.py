@@ -99,7 +99,7 @@ def _offset(grid: Any, ref: Any, index: int) -> tuple[int, int]:
         raise MosaicError(
             f"mosaic: source {index + 1} is in another CRS ({grid.crs.name!r}, not "
             f"{ref.crs.name!r}); mosaic does not reproject: warp it onto the same CRS first")
-    for mine, theirs in zip(grid.resolution, ref.resolution):
+    for mine, theirs in zip(grid.resolution, ref.resolution, strict=True):
         if abs(mine - theirs) > _RES_RTOL * max(abs(mine), abs(theirs)):
             raise MosaicError(
                 f"mosaic: source {index + 1} has resolution {grid.resolution}, not "
@@ -125,8 +125,8 @@ def _union_grid(grids: Sequence[Any]) -> Any:
     offsets = [_offset(g, ref, i) for i, g in enumerate(grids)]
     r0 = min(o[0] for o in offsets)
     c0 = min(o[1] for o in offsets)
-    r1 = max(o[0] + g.shape[0] for o, g in zip(offsets, grids))
-    c1 = max(o[1] + g.shape[1] for o, g in zip(offsets, grids))
+    r1 = max(o[0] + g.shape[0] for o, g in zip(offsets, grids, strict=True))
+    c1 = max(o[1] + g.shape[1] for o, g in zip(offsets, grids, strict=True))
     t = ref.transform
     return OutputGrid(ref.crs, Affine(t.a, 0.0, t.c + t.a * c0, 0.0, t.e, t.f + t.e * r0),
                       (r1 - r0, c1 - c0))
@@ -332,7 +332,7 @@ def mosaic(
 
     values, masks = [], []
     halo = int(math.ceil(feather_px)) if method == "feather" else 0
-    for o, off, fill in zip(orthos, offsets, fills):
+    for o, off, fill in zip(orthos, offsets, fills, strict=True):
         arr = o.data if isinstance(o.data, da.Array) else da.from_array(
             np.asarray(o.data), chunks=(-1, rc, cc))
         valid = _valid(arr, fill)
@@ -360,7 +360,7 @@ def mosaic(
         count = da.zeros(shape, dtype=np.int32, chunks=out_chunks[1:])
         best_w = da.zeros(shape, dtype=np.float64, chunks=out_chunks[1:])
         contribution = da.zeros(shape, dtype=ctype, chunks=out_chunks[1:])
-        for k, (v, m) in enumerate(zip(values, masks), start=1):
+        for k, (v, m) in enumerate(zip(values, masks, strict=True), start=1):
             w = _weights(m, halo, float(feather_px), shape).rechunk(out_chunks[1:])
             num = num + da.where((w > 0)[None], w[None] * v.astype(np.float64), 0.0)
             den = den + w

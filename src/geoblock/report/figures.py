@@ -19,6 +19,7 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg

@@ -5,12 +5,11 @@ from __future__ import annotations
 # --8<-- [start:contract]
 import numpy as np
 import pytest
+from geoblock_example import FrameCamera, read_frame_file, sample_file
 
 import geoblock
 from geoblock.errors import ModelFormatError, UnsupportedFormatError
 from geoblock.testing import SensorModelContract, check_sensor_model
-
-from geoblock_example import FrameCamera, read_frame_file, sample_file
 
 
 # --- the contract: one test per check, run on every model the fixture gives -------------------
@@ -33,14 +32,18 @@ def test_check_sensor_model_accepts_a_tilted_camera():
 
 # --- the model's own geometry --------------------------------------------------------------------
 def test_nadir_camera_images_the_point_below_at_the_principal_point():
-    cam = FrameCamera((100, 200), 1000.0, (49.5, 99.5), (7.0, 45.0, 10_000.0), height_range=(0, 100))
+    cam = FrameCamera(
+        (100, 200), 1000.0, (49.5, 99.5), (7.0, 45.0, 10_000.0), height_range=(0, 100)
+    )
     row, col = cam.project(7.0, 45.0, 0.0)
     assert float(row) == pytest.approx(49.5, abs=1e-9)
     assert float(col) == pytest.approx(99.5, abs=1e-9)
 
 
 def test_nadir_camera_is_north_up_east_right():
-    cam = FrameCamera((100, 200), 1000.0, (49.5, 99.5), (7.0, 45.0, 10_000.0), height_range=(0, 100))
+    cam = FrameCamera(
+        (100, 200), 1000.0, (49.5, 99.5), (7.0, 45.0, 10_000.0), height_range=(0, 100)
+    )
     row_n, col_n = cam.project(7.0, 45.001, 0.0)
     row_e, col_e = cam.project(7.001, 45.0, 0.0)
     assert row_n < 49.5 and col_n == pytest.approx(99.5, abs=1e-6)

@@ -250,7 +250,9 @@ def _localise_one(r, c, z, prm, coef, tol_px, stall_px, max_iter):  # pragma: no
 
 
 @njit(parallel=True, cache=True)
-def localise(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, status):  # pragma: no cover
+def localise(
+    row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat, status
+):  # pragma: no cover
     """Image (pixels) at height h -> ground (degrees), every point (:func:`_localise_one`)."""
     for i in prange(row.shape[0]):
         lon[i], lat[i], status[i] = _localise_one(row[i], col[i], h[i], prm, coef, tol_px,

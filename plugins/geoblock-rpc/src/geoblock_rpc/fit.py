@@ -157,7 +157,7 @@ def _solve_ratio(
     den = np.ones(n)
     previous = None
     iterations = 0
-    for iterations in range(1, max_iterations + 1):
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 (returned after the loop)
         w = 1.0 / den
         a = scaled * w[:, None]
         b = y * w

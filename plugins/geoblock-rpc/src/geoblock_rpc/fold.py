@@ -19,8 +19,10 @@ as an RPC00B exactly:
   common-denominator RPCs many vendors deliver): with ``D = Dl``,
   ``row - LO = [(1 + a1/s) LS Nl + (a2/s) SS k Ns] / D + a0 + (a1 (LO - r0) + a2 (SO - c0)) / s``
   has the denominator ``D``, so keeping ``LINE_OFF, LINE_SCALE, LINE_DEN``:
-  ``LINE_NUM' = (1 + a1/s) Nl + (a2/s)(SS/LS) k Ns + [a0 + (a1 (LO - r0) + a2 (SO - c0))/s] / LS * Dl``
-  and ``SAMP_NUM' = (1 + b2/s) Ns + (b1/s)(LS/SS) Nl / k + [b0 + (b1 (LO - r0) + b2 (SO - c0))/s] / SS * Ds``.
+  ``LINE_NUM' = (1 + a1/s) Nl + (a2/s)(SS/LS) k Ns
+  + [a0 + (a1 (LO - r0) + a2 (SO - c0))/s] / LS * Dl``
+  and ``SAMP_NUM' = (1 + b2/s) Ns + (b1/s)(LS/SS) Nl / k
+  + [b0 + (b1 (LO - r0) + b2 (SO - c0))/s] / SS * Ds``.
 * Otherwise (an affinity with cross terms over different denominators — the result would be
   a ratio with the product denominator ``Dl Ds``, of degree 6 — or any non-zero quadratic term,
   which squares the ratios) there is no exact RPC00B: the corrected model is **refit** as a

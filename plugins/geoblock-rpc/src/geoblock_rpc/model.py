@@ -110,7 +110,11 @@ class RpcModel(SensorModelBase):
                 f"RpcModel: domain_limit and height_limit must be >= 1, got {domain_limit!r}, "
                 f"{height_limit!r}"
             )
-        box = (rpc.min_long, rpc.max_long, rpc.min_lat, rpc.max_lat) if rpc.has_validity_box else None
+        box = (
+            (rpc.min_long, rpc.max_long, rpc.min_lat, rpc.max_lat)
+            if rpc.has_validity_box
+            else None
+        )
         self._prm = _kernels.pack(rpc, self._domain_limit, self._height_limit, box)
         self._coef = np.ascontiguousarray(rpc.coefficients)
 
@@ -224,7 +228,10 @@ class RpcModel(SensorModelBase):
         kernel(r, c, z, self._prm, self._coef, self.localisation_tolerance_px,
                self.localisation_stall_px, self.localisation_max_iterations, lon, lat, status)
         h_out = np.where(status == 0, z, np.nan)
-        return GroundCoords(lon.reshape(shape), lat.reshape(shape), h_out.reshape(shape)), status.reshape(shape)
+        return (
+            GroundCoords(lon.reshape(shape), lat.reshape(shape), h_out.reshape(shape)),
+            status.reshape(shape),
+        )
 
     def _ground_to_image(self, lon, lat, h):
         (row, col), status = self.project_with_status(lon, lat, h)

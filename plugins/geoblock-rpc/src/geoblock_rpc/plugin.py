@@ -7,7 +7,6 @@ from pathlib import Path
 
 import geoblock
 from geoblock.errors import GeoblockWarning, ModelFormatError
-
 from geoblock_rpc.model import RpcModel
 
 

@@ -67,7 +67,9 @@ Shape = tuple[int, int]
 Result = tuple[Rpc00b, Shape | None, dict[str, Any]]
 
 #: index in RPC00B order of each RPC00A term (A: 1 L P H LP LH PH LPH L2 P2 H2 L3 ...)
-RPC00A_TO_B: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 12, 13, 14, 15, 16, 17, 18, 19)
+RPC00A_TO_B: tuple[int, ...] = (
+    0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 12, 13, 14, 15, 16, 17, 18, 19,
+)
 
 _HEAD_BYTES = 65536
 _RASTER_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+", b"NITF", b"NSIF")

@@ -222,7 +222,7 @@ def _number(value: Any, key: str, source: str) -> float:
         raise ModelFormatError(f"{source}: {key} is not a number: {value!r}") from None
 
 
-def evaluate_terms(l: np.ndarray, p: np.ndarray, h: np.ndarray) -> np.ndarray:
+def evaluate_terms(l: np.ndarray, p: np.ndarray, h: np.ndarray) -> np.ndarray:  # noqa: E741
     """The 20 RPC00B terms of normalised coordinates, (*S, 20), in :data:`TERMS` order."""
     return np.stack(
         [

@@ -69,7 +69,6 @@ from geoblock.models.linescan import (
     orbital_frame,
 )
 from geoblock.models.parameters import ParameterSet
-
 from geoblock_spot.dimap import (
     EARTH_ROTATION_RAD_S,
     DimapFormatError,

@@ -27,7 +27,6 @@ def geoblock_read_sensor_model(path, model_name, options):
     if not is_spot_dimap(path):
         return None
     from geoblock.errors import ModelFormatError
-
     from geoblock_spot.los import spot_dimap_model
 
     known = {"parameters", "use_attitude", "height_range"}

@@ -6,7 +6,6 @@ Keep this module cheap to import: geoblock imports it when it first builds its p
 from __future__ import annotations
 
 import geoblock
-
 from geoblock_example.camera import FrameCamera
 from geoblock_example.reader import looks_like_frame_file, read_frame_file
 

@@ -20,7 +20,6 @@ import importlib.resources
 from pathlib import Path
 
 from geoblock.errors import ModelFormatError
-
 from geoblock_example.camera import FrameCamera
 
 __all__ = ["MAGIC", "looks_like_frame_file", "read_frame_file", "sample_file"]
