@@ -149,26 +149,46 @@ class GridDem(DemBase):
         return h
 
     def height_range(self, bounds=None) -> tuple[float, float]:
-        """Min and max ellipsoidal height of the posts inside ``bounds`` (default all)."""
+        """Min and max ellipsoidal height of the posts whose interpolation kernels reach into
+        ``bounds`` (``(west, south, east, north)`` degrees; default all posts).
+
+        Only the window of posts around the box is read (its outline is mapped into the
+        grid), so a small box on a large grid costs little."""
         rows, cols = self._heights_array.shape
-        rr, cc = np.mgrid[0:rows, 0:cols]
-        x, y = affine_apply(self._transform, *(cc + 0.5, rr + 0.5))
-        horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
-        if _is_lonlat(horizontal):
-            lon, lat = x, y
+        if bounds is None:
+            r0, r1, c0, c1 = 0, rows, 0, cols
         else:
-            lon, lat = coords.transformer(horizontal, "EPSG:4326").transform(x, y)
-        lon, lat = np.asarray(lon), np.asarray(lat)
-        h = self._heights_array
+            w, s, e, n = (float(v) for v in bounds)
+            t = np.linspace(0.0, 1.0, 21)
+            lon = np.concatenate([w + t * (e - w), np.full(21, e), e - t * (e - w),
+                                  np.full(21, w)])
+            lat = np.concatenate([np.full(21, s), s + t * (n - s), np.full(21, n),
+                                  n - t * (n - s)])
+            row, col = self.pixel_coords(lon, lat)
+            horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
+            if _is_lonlat(horizontal) and e - w >= 360.0:
+                col = np.array([-1.0, cols + 1.0])
+            if not (np.isfinite(row).any() and np.isfinite(col).any()):
+                return (float("nan"), float("nan"))
+            r0 = max(int(np.floor(np.nanmin(row))) - 1, 0)
+            r1 = min(int(np.floor(np.nanmax(row))) + 3, rows)
+            c0 = max(int(np.floor(np.nanmin(col))) - 1, 0)
+            c1 = min(int(np.floor(np.nanmax(col))) + 3, cols)
+            if r0 >= r1 or c0 >= c1:
+                return (float("nan"), float("nan"))
+        h = self._heights_array[r0:r1, c0:c1]
         if self._geoid is not None:
-            h = h + self._geoid.undulation(lon, lat)
-        inside = np.isfinite(h)
-        if bounds is not None:
-            w, s, e, n = bounds
-            inside &= (lon >= w) & (lon <= e) & (lat >= s) & (lat <= n)
-        if not inside.any():
+            rr, cc = np.mgrid[r0:r1, c0:c1]
+            x, y = affine_apply(self._transform, *(cc + 0.5, rr + 0.5))
+            horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
+            if _is_lonlat(horizontal):
+                lon, lat = x, y
+            else:
+                lon, lat = coords.transformer(horizontal, "EPSG:4326").transform(x, y)
+            h = h + self._geoid.undulation(np.asarray(lon), np.asarray(lat))
+        if not np.isfinite(h).any():
             return (float("nan"), float("nan"))
-        return (float(h[inside].min()), float(h[inside].max()))
+        return (float(np.nanmin(h)), float(np.nanmax(h)))
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
