@@ -18,5 +18,15 @@ def test_quickstart_runs(tmp_path, monkeypatch, capsys):
 def test_setup_commands_match_ci():
     text = README.read_text()
     ci = (README.parent / ".ci" / "run").read_text()
-    test_command = next(line for line in text.splitlines() if "requirements-dev.txt" in line and "pytest" in line)
+    test_command = next(line for line in text.splitlines()
+                        if "requirements-dev.txt" in line and "pytest" in line)
     assert test_command.strip() in ci
+
+
+def test_first_command_runs_the_demo_and_ci_smoke_runs_it():
+    text = README.read_text()
+    ci = (README.parent / ".ci" / "run").read_text()
+    first = next(line for line in text.splitlines() if "requirements.txt" in line
+                 and "pip install" in line)
+    assert first.strip().endswith(".venv/bin/geoblock demo")
+    assert '.venv/bin/geoblock demo "$(mktemp -d)"' in ci

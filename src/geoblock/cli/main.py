@@ -238,6 +238,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     GeoblockGroup
     """
     from geoblock.cli.dem_info import dem_info
+    from geoblock.cli.demo import demo
     from geoblock.cli.info import info
     from geoblock.cli.localize import localize
     from geoblock.cli.mosaic import mosaic
@@ -245,6 +246,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     from geoblock.cli.plugins import plugins
     from geoblock.cli.project import backproject, project
     from geoblock.cli.refine import refine
+    from geoblock.cli.simulate import simulate
 
     @click.group(
         cls=GeoblockGroup,
@@ -285,6 +287,8 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     cli.add_command(dem_info)
     cli.add_command(ortho)
     cli.add_command(mosaic)
+    cli.add_command(simulate)
+    cli.add_command(demo)
     return cli  # type: ignore[return-value]
 
 
