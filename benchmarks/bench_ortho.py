@@ -218,13 +218,17 @@ def run_method(method: str, data: dict, size: int, out_dir: str) -> dict:
         import geoblock
         from geoblock.io import write_ortho
         from geoblock.ortho import orthorectify
-        from geoblock.ortho.lattice import source_coordinates
 
         model = _model()
         dem = geoblock.open_dem(data["dem"])
-        # warm the numba kernels (on-disk cache) outside the timing
-        small = grid[:64, :64]
-        source_coordinates(model, dem, small)
+        # the first, cold call: loading the compiled kernels from numba's on-disk cache
+        # (or compiling them), GDAL and the thread pool, on a 64 x 64 corner of the grid
+        t0 = time.perf_counter()
+        warm = os.path.join(out_dir, "warm.tif")
+        write_ortho(orthorectify(data["source"], model, dem, grid[:64, :64], chunks=64), warm,
+                    compress=None, scheduler="threads", blocksize=64)
+        os.remove(warm)
+        extra["first_call_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         arr = orthorectify(data["source"], model, dem, grid, kernel="bilinear",
                            tolerance_px=0.01, chunks=1024)
@@ -419,8 +423,10 @@ def main() -> None:
         g = results.get("geoblock", {})
         if "seconds" in g:
             mp = size * size / g["seconds"] / 1e6
+            cold = size * size / (g["seconds"] + g["first_call_s"]) / 1e6
             print(f"\ntarget >= {TARGET_MPIX:g} Mpix/s at <= 0.01 px, <= {TARGET_PEAK_MIB:g} MiB: "
-                  f"{mp:.1f} Mpix/s, {g['peak_mib']:.0f} MiB")
+                  f"{mp:.1f} Mpix/s, {g['peak_mib']:.0f} MiB (first call, kernels loaded from "
+                  f"numba's cache: {g['first_call_s']:.2f} s; {cold:.1f} Mpix/s with it)")
         agree = agreement(data, size, str(tmp), min(args.strip_rows, size))
         print("\n### geometric agreement (source coordinates, px; d = max(|drow|, |dcol|))\n")
         print(f"strip: {agree.pop('strip')}\n")
