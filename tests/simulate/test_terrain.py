@@ -139,3 +139,62 @@ def test_geoid_terrain_round_trip(tmp_path, data_dir):
     dem = open_dem(geo.write(tmp_path / "geoid.tif"), geoid=egm96)
     assert dem.vertical == "geoid"
     np.testing.assert_allclose(dem.height(lon, lat), ell.heights[1:-1, 1:-1], atol=1e-3)
+
+
+# ---------------------------------------------------------------------------- lean measured DEM
+def test_measured_dem_is_deterministic_and_finite_to_its_edges():
+    """Same seed, same DEM; another seed, another. A 2 m DEM from a 4 m truth has posts in the
+    half cell past the truth's outer centres: they take the edge value (no NaN border)."""
+    truth = fractal_terrain(Grid.around(-2.4, 36.8, 1200.0, 4.0), (50.0, 850.0), seed=3)
+    a = measured_dem(truth, 2.0, 0.5, seed=5)
+    b = measured_dem(truth, 2.0, 0.5, seed=5)
+    c = measured_dem(truth, 2.0, 0.5, seed=6)
+    np.testing.assert_array_equal(a.heights, b.heights)
+    assert np.abs(a.heights - c.heights).max() > 0.1
+    assert a.shape == (600, 600) and np.isfinite(a.heights).all()
+    assert a.heights.flags.writeable is False and a.heights.dtype == np.float64
+
+
+def test_separable_resampling_matches_pointwise_bilinear(almeria):
+    """The strip-wise, 1-D-index resampling against geoblock's point sampler on every post."""
+    from geoblock._affine import apply as affine_apply
+    from geoblock.dem.sampling import sample
+    from geoblock.simulate import terrain as t
+
+    grid = almeria.grid.with_spacing_m(4.7)
+    x, y = grid.xy()
+    xx, yy = np.meshgrid(x, y)
+    col, row = affine_apply(~almeria.grid.transform, xx, yy)
+    rows, cols = almeria.shape
+    expected = sample(almeria.heights, np.clip(row - 0.5, 0, rows - 1.000001),
+                      np.clip(col - 0.5, 0, cols - 1.000001), "bilinear")
+    np.testing.assert_allclose(t._resampled(almeria, grid), expected, rtol=0, atol=1e-6)
+
+
+def test_noise_field_has_the_gaussian_covariance_asked():
+    """Unit variance; lag-L correlation exp(-1) (covariance exp(-d^2 / L^2)) along both axes;
+    white noise uncorrelated at lag 1."""
+    from geoblock.simulate.terrain import _noise_field
+
+    length = 8.0
+    corr = _noise_field((700, 650), length, 0.0, np.random.default_rng(1)).astype(float)
+    assert corr.dtype == np.float64 and corr.shape == (700, 650)
+    assert corr.mean() == pytest.approx(0.0, abs=1e-6) and corr.std() == pytest.approx(1.0, 1e-5)
+    lag = int(length)
+    assert np.mean(corr[:, lag:] * corr[:, :-lag]) == pytest.approx(math.exp(-1.0), abs=0.06)
+    assert np.mean(corr[lag:] * corr[:-lag]) == pytest.approx(math.exp(-1.0), abs=0.06)
+    assert np.mean(corr[:, 4:] * corr[:, :-4]) == pytest.approx(math.exp(-0.25), abs=0.06)
+    white = _noise_field((300, 300), length, 1.0, np.random.default_rng(2)).astype(float)
+    assert white.std() == pytest.approx(1.0, abs=0.02)
+    assert abs(np.mean(white[:, 1:] * white[:, :-1])) < 0.02
+
+
+def test_strip_wise_slope_equals_the_whole_grid_gradient(almeria, monkeypatch):
+    from geoblock.simulate import terrain as t
+
+    monkeypatch.setattr(t, "_STRIP_POSTS", 7 * almeria.shape[1])  # strips of 7 rows
+    dx, dy = almeria.grid.spacing_m()
+    gy, gx = np.gradient(almeria.heights)
+    expected = np.degrees(np.arctan(np.hypot(gx / dx[:, None], gy / dy)))
+    np.testing.assert_allclose(almeria.slope_deg(), expected, rtol=0, atol=1e-12)
+    assert t._max_slope(almeria.heights, dx, dy) == pytest.approx(expected.max(), abs=1e-12)

@@ -278,13 +278,13 @@ def write_dem(
         raise DemError(f"write_dem {path}: dtype must be 'float32' or 'float64', got {dtype!r}")
     if not math.isfinite(float(nodata)):
         raise DemError(f"write_dem {path}: nodata must be a finite number, got {nodata!r}")
-    if np.isinf(arr).any():
+    strips = [(r0, min(arr.shape[0], r0 + 1024)) for r0 in range(0, arr.shape[0], 1024)]
+    if any(np.isinf(arr[r0:r1]).any() for r0, r1 in strips):
         raise DemError(f"write_dem {path}: heights contain infinite values")
     transform = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
     if transform.is_degenerate:
         raise DemError(f"write_dem {path}: degenerate transform {tuple(transform)[:6]}")
     full_crs = vertical_crs(crs, vertical)
-    data = np.where(np.isnan(arr), float(nodata), arr).astype(dtype)
     profile: dict[str, Any] = {
         "driver": "GTiff", "width": arr.shape[1], "height": arr.shape[0], "count": 1,
         "dtype": dtype, "crs": rasterio.crs.CRS.from_wkt(full_crs.to_wkt()),
@@ -296,7 +296,10 @@ def write_dem(
         profile["compress"] = compress
     datum = "EGM96 geoid" if vertical == "geoid" else "WGS84 ellipsoid"
     with atomic_path(path) as tmp, rasterio.open(tmp, "w", **profile) as dst:
-        dst.write(data, 1)
+        for r0, r1 in strips:  # 1024 rows at a time: no full-size copy of a large grid
+            block = arr[r0:r1]
+            dst.write(np.where(np.isnan(block), float(nodata), block).astype(dtype), 1,
+                      window=rasterio.windows.Window(0, r0, arr.shape[1], r1 - r0))
         dst.update_tags(1, GEOBLOCK_VERTICAL=vertical, VERTICAL_DATUM=datum)
         dst.set_band_unit(1, "metre")
     return path

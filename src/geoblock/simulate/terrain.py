@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 import pyproj
+import scipy.fft as _fft
 from affine import Affine
 
 from geoblock import coords
@@ -36,6 +37,7 @@ from geoblock.errors import DemError
 __all__ = ["Grid", "Terrain", "fractal_terrain", "measured_dem", "ridged_terrain"]
 
 _DEG_M = math.radians(1.0) * coords.WGS84_A  # metres per degree of latitude (sphere of radius a)
+_WORKERS = -1  # scipy.fft threads: all cores (the transforms' values do not depend on it)
 
 
 def _horizontal(crs: pyproj.CRS) -> pyproj.CRS:
@@ -220,6 +222,24 @@ class Terrain:
         h.flags.writeable = False
         object.__setattr__(self, "heights", h)
 
+    @classmethod
+    def _owning(cls, heights: np.ndarray, grid: Grid, vertical: str) -> Terrain:
+        """A Terrain on ``heights`` (float64, C-contiguous, made here and referenced nowhere
+        else) without the defensive copy of the constructor: a 2 m grid over 20 km is
+        about 1 GB."""
+        if heights.dtype != np.float64 or not heights.flags.c_contiguous:
+            return cls(heights, grid, vertical)
+        if heights.shape != grid.shape:
+            raise DemError(f"Terrain: heights {heights.shape} do not match the grid {grid.shape}")
+        if vertical not in ("ellipsoid", "geoid"):
+            raise DemError(f"Terrain: vertical must be 'ellipsoid' or 'geoid', got {vertical!r}")
+        heights.flags.writeable = False
+        terrain = object.__new__(cls)
+        object.__setattr__(terrain, "heights", heights)
+        object.__setattr__(terrain, "grid", grid)
+        object.__setattr__(terrain, "vertical", vertical)
+        return terrain
+
     @property
     def transform(self) -> Affine:
         return self.grid.transform
@@ -240,8 +260,10 @@ class Terrain:
     def slope_deg(self) -> np.ndarray:
         """(R, C) terrain slope, degrees, from central differences (one-sided at the edges)."""
         dx, dy = self.grid.spacing_m()
-        gy, gx = np.gradient(self.heights)
-        return np.degrees(np.arctan(np.hypot(gx / dx[:, None], gy / dy)))
+        out = np.empty(self.shape)
+        for r0, r1 in _strips(self.shape):
+            out[r0:r1] = _slope_rows(self.heights, dx, dy, r0, r1)
+        return out
 
     def to_dem(self, geoid: Any = None, interpolation: str = "bilinear") -> GridDem:
         """The terrain as a :class:`~geoblock.dem.GridDem` (heights above the ellipsoid).
@@ -302,16 +324,50 @@ def _wavenumbers(shape: tuple[int, int]) -> np.ndarray:
     return np.hypot(kx, ky)
 
 
+#: posts per strip of the strip-wise loops (about 32 MB of float64): the memory of a pass is
+#: a few strips, not a few grids
+_STRIP_POSTS = 1 << 22
+
+
+def _strips(shape: tuple[int, ...]):
+    """``(r0, r1)`` row ranges of about ``_STRIP_POSTS`` posts covering ``shape[0]`` rows."""
+    rows, cols = shape[0], shape[1]
+    step = max(1, _STRIP_POSTS // max(cols, 1))
+    for r0 in range(0, rows, step):
+        yield r0, min(rows, r0 + step)
+
+
+def _slope_rows(h: np.ndarray, dx: np.ndarray, dy: float, r0: int, r1: int,
+                degrees: bool = True) -> np.ndarray:
+    """Slope of rows ``r0:r1`` of ``h`` exactly as :func:`numpy.gradient` on the whole grid
+    gives it (one row of halo either side, one-sided differences at the grid's edges):
+    degrees, or the gradient's norm (rise over run) with ``degrees=False``."""
+    a, b = max(0, r0 - 1), min(h.shape[0], r1 + 1)
+    gy, gx = np.gradient(h[a:b])
+    gy, gx = gy[r0 - a: r1 - a], gx[r0 - a: r1 - a]
+    gx /= dx[r0:r1, None]
+    gy /= dy
+    np.hypot(gx, gy, out=gx)
+    return np.degrees(np.arctan(gx, out=gx), out=gx) if degrees else gx
+
+
 def _scaled(field: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """``field`` (a fresh array, overwritten) scaled to span ``lo..hi`` exactly; C-contiguous."""
     zmin, zmax = float(field.min()), float(field.max())
     if not zmax > zmin:
         return np.full(field.shape, lo)
-    return lo + (field - zmin) * ((hi - lo) / (zmax - zmin))
+    out = np.ascontiguousarray(field, dtype=np.float64)
+    out -= zmin
+    out *= (hi - lo) / (zmax - zmin)
+    out += lo
+    return out
 
 
 def _max_slope(h: np.ndarray, dx: np.ndarray, dy: float) -> float:
-    gy, gx = np.gradient(h)
-    return float(np.degrees(np.arctan(np.sqrt(np.max((gx / dx[:, None]) ** 2 + (gy / dy) ** 2)))))
+    """Steepest slope of ``h``, degrees (strip by strip: no full-size gradient arrays)."""
+    steepest = max(float(_slope_rows(h, dx, dy, r0, r1, degrees=False).max())
+                   for r0, r1 in _strips(h.shape))
+    return float(np.degrees(np.arctan(steepest)))
 
 
 def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_deg: float | None,
@@ -327,18 +383,28 @@ def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_
         raise DemError(f"terrain: relief must be (low, high) with high > low, got {relief}")
     rows, cols = grid.shape
     if max_slope_deg is None:
-        return Terrain(_scaled(raw[:rows, :cols], lo, hi), grid, vertical)
+        return Terrain._owning(_scaled(raw[:rows, :cols], lo, hi), grid, vertical)
     if not 0.0 < float(max_slope_deg) < 90.0:
         raise DemError(f"terrain: max_slope_deg must be in (0, 90), got {max_slope_deg}")
     dx, dy = grid.spacing_m()
-    spectrum = np.fft.rfft2(raw)
-    k = _wavenumbers(raw.shape)
-    k[0, 0] = 1.0
-    k_ref = 1.0 / max(raw.shape)  # the tilt pivots on the longest wavelength
+    size = raw.shape
+    spectrum = _fft.rfft2(raw, workers=_WORKERS)
+    del raw  # the caller passes its only reference: the padded field is freed here
+    # the tilt |k / k_ref| ** -gamma as exp(-gamma log|k / k_ref|), pivoting on the longest
+    # wavelength; one real and one complex scratch array serve every bisection step
+    log_k = _wavenumbers(size)
+    log_k[0, 0] = 1.0
+    log_k *= max(size)
+    np.log(log_k, out=log_k)
+    tilt = np.empty_like(log_k)
+    tilted = np.empty_like(spectrum)
 
     def surface(gamma: float) -> np.ndarray:
-        z = np.fft.irfft2(spectrum * (k / k_ref) ** (-gamma), s=raw.shape)[:rows, :cols]
-        return _scaled(z, lo, hi)
+        np.multiply(log_k, -gamma, out=tilt)
+        np.exp(tilt, out=tilt)
+        np.multiply(spectrum, tilt, out=tilted)
+        z = _fft.irfft2(tilted, s=size, workers=_WORKERS)
+        return _scaled(z[:rows, :cols], lo, hi)
 
     target = float(max_slope_deg)
     g_lo, g_hi = -1.5, 8.0  # slope(g_lo) high, slope(g_hi) low
@@ -349,9 +415,10 @@ def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_
             f"{hi - lo:.0f} m on this grid (reachable {s_hi:.1f}..{s_lo:.1f} degrees): change the "
             "relief, the grid extent or its resolution"
         )
-    best = surface(g_lo)
+    best = None
     for _ in range(max_iterations):
         g = 0.5 * (g_lo + g_hi)
+        best = None  # free the previous surface before making the next
         best = surface(g)
         s = _max_slope(best, dx, dy)
         if abs(s - target) <= tolerance_deg:
@@ -360,7 +427,7 @@ def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_
             g_lo = g
         else:
             g_hi = g
-    return Terrain(best, grid, vertical)
+    return Terrain._owning(best, grid, vertical)
 
 
 def fractal_terrain(
@@ -404,13 +471,20 @@ def fractal_terrain(
     """
     if not 0.0 < hurst < 1.5:
         raise DemError(f"fractal_terrain: hurst must be in (0, 1.5), got {hurst}")
-    size = _padded(grid.shape)
-    rng = np.random.default_rng(seed)
+    # the padded field is passed without a name here, so that _finish can free it
+    return _finish(_fbm(_padded(grid.shape), hurst, np.random.default_rng(seed)), grid, relief,
+                   max_slope_deg, vertical)
+
+
+def _fbm(size: tuple[int, int], hurst: float, rng: np.random.Generator) -> np.ndarray:
+    """The padded fBm field of :func:`fractal_terrain` (filters applied in place)."""
+    spectrum = _fft.rfft2(rng.standard_normal(size), workers=_WORKERS)
     k = _wavenumbers(size)
     k[0, 0] = np.inf
-    noise = np.fft.rfft2(rng.standard_normal(size))
-    raw = np.fft.irfft2(noise * k ** (-(hurst + 1.0)), s=size)
-    return _finish(raw, grid, relief, max_slope_deg, vertical)
+    np.power(k, -(hurst + 1.0), out=k)
+    spectrum *= k
+    del k
+    return _fft.irfft2(spectrum, s=size, workers=_WORKERS, overwrite_x=True)
 
 
 def ridged_terrain(
@@ -454,23 +528,49 @@ def ridged_terrain(
     """
     if octaves < 1:
         raise DemError(f"ridged_terrain: octaves must be >= 1, got {octaves}")
-    size = _padded(grid.shape)
-    rng = np.random.default_rng(seed)
-    k = _wavenumbers(size)
+    # the padded field is passed without a name here, so that _finish can free it
+    return _finish(_ridged(_padded(grid.shape), octaves, hurst, gain, np.random.default_rng(seed)),
+                   grid, relief, max_slope_deg, vertical)
+
+
+def _ridged(size: tuple[int, int], octaves: int, hurst: float, gain: float,
+            rng: np.random.Generator) -> np.ndarray:
+    """The padded field of :func:`ridged_terrain`: three full-size arrays (sum, weight, the
+    octave's signal) and two half-spectrum scratch arrays, every step in place."""
+    log_k = _wavenumbers(size)
+    np.maximum(log_k, 1e-12, out=log_k)
+    np.log(log_k, out=log_k)
+    band = np.empty_like(log_k)
     total = np.zeros(size)
     weight = np.ones(size)
     for i in range(octaves):
         centre = 2.0 ** (i + 1) / max(size)  # cycles per pixel
         if centre > 0.5:
             break
-        band = np.exp(-0.5 * (np.log(np.maximum(k, 1e-12) / centre) / 0.35) ** 2)
+        # Gaussian band in log |k| around the centre
+        np.subtract(log_k, math.log(centre), out=band)
+        band /= 0.35
+        np.square(band, out=band)
+        band *= -0.5
+        np.exp(band, out=band)
         band[0, 0] = 0.0
-        n = np.fft.irfft2(np.fft.rfft2(rng.standard_normal(size)) * band, s=size)
+        spectrum = _fft.rfft2(rng.standard_normal(size), workers=_WORKERS)
+        spectrum *= band
+        n = _fft.irfft2(spectrum, s=size, workers=_WORKERS, overwrite_x=True)
+        del spectrum
         n /= n.std()
-        signal = (1.0 - np.minimum(np.abs(n), 1.0)) ** 2 * weight
-        weight = np.clip(signal * gain, 0.0, 1.0)
-        total += signal * 2.0 ** (-i * hurst)
-    return _finish(total, grid, relief, max_slope_deg, vertical)
+        # signal = (1 - min(|n|, 1)) ** 2 * weight, in n
+        np.abs(n, out=n)
+        np.minimum(n, 1.0, out=n)
+        np.subtract(1.0, n, out=n)
+        np.square(n, out=n)
+        n *= weight
+        np.multiply(n, gain, out=weight)
+        np.clip(weight, 0.0, 1.0, out=weight)
+        n *= 2.0 ** (-i * hurst)
+        total += n
+        del n
+    return total
 
 
 # ---------------------------------------------------------------------------- measured DEM
@@ -522,27 +622,10 @@ def measured_dem(
         raise DemError(f"measured_dem: need spacing_m > 0, rmse_z >= 0 and white_fraction in "
                        f"[0, 1], got {spacing_m}, {rmse_z}, {white_fraction}")
     grid = truth.grid.with_spacing_m(spacing_m)
-    # truth at the measured posts (same CRS: pixel coordinates through the two transforms)
-    x, y = grid.xy()
-    xx, yy = np.meshgrid(x, y)
-    col_t, row_t = affine_apply(~truth.grid.transform, xx, yy)
-    rows_t, cols_t = truth.shape
-    # posts in the half cell between the truth's outer centres and its edge: edge extension
-    row_t = np.clip(row_t - 0.5, 0.0, rows_t - 1.0)
-    col_t = np.clip(col_t - 0.5, 0.0, cols_t - 1.0)
-    resampled = sample(truth.heights, row_t, col_t, "bilinear")
-
     rng = np.random.default_rng(seed)
     length = 10.0 * spacing_m if correlation_length_m is None else float(correlation_length_m)
-    size = _padded(grid.shape)
-    k = _wavenumbers(size) / spacing_m  # cycles per metre
-    # Gaussian covariance exp(-d^2 / L^2) <-> spectrum exp(-(pi k L)^2); amplitude its root
-    filt = np.exp(-0.5 * (np.pi * k * length) ** 2)
-    corr = np.fft.irfft2(np.fft.rfft2(rng.standard_normal(size)) * filt, s=size)
-    corr = corr[: grid.shape[0], : grid.shape[1]]
-    corr = (corr - corr.mean()) / (corr.std() or 1.0)
-    white = rng.standard_normal(grid.shape)
-    noise = math.sqrt(1.0 - white_fraction) * corr + math.sqrt(white_fraction) * white
+    noise = _noise_field(grid.shape, length / spacing_m, white_fraction, rng)  # float32
+    heights = _resampled(truth, grid)  # float64, becomes the measured DEM's heights
 
     # the measured DEM against the truth surface at random check points (bilinear, as a
     # GridDem samples both), with and without noise: solve for the noise scale
@@ -552,8 +635,8 @@ def measured_dem(
     cx, cy = affine_apply(grid.transform, pc + 0.5, pr + 0.5)
     col_c, row_c = affine_apply(~truth.grid.transform, cx, cy)
     true_h = sample(truth.heights, row_c - 0.5, col_c - 0.5, "bilinear")
-    r_err = sample(resampled, pr, pc, "bilinear") - true_h
-    n_err = sample(noise, pr, pc, "bilinear")
+    r_err = sample(heights, pr, pc, "bilinear") - true_h
+    n_err = _bilinear_at(noise, pr, pc)
     ok = np.isfinite(r_err) & np.isfinite(n_err)
     if not ok.any():
         raise DemError("measured_dem: no check point has a truth height inside the measured grid")
@@ -567,4 +650,101 @@ def measured_dem(
             "spacing or a larger rmse_z"
         )
     scale = (-b + math.sqrt(max(disc, 0.0))) / (2.0 * a) if a > 0 else 0.0
-    return Terrain(resampled + scale * noise, grid, truth.vertical)
+    for r0, r1 in _strips(grid.shape):
+        heights[r0:r1] += scale * noise[r0:r1].astype(np.float64)
+    del noise
+    return Terrain._owning(heights, grid, truth.vertical)
+
+
+def _axis_taps(position: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear taps along one axis of ``n`` posts: the lower post (so that the upper one,
+    ``+ 1``, is inside) and the weight of the upper one, for pixel-centre ``position``
+    clipped to the posts (edge extension)."""
+    p = np.clip(position, 0.0, n - 1.0)
+    lower = np.minimum(np.floor(p).astype(np.intp), n - 2)
+    return lower, p - lower
+
+
+def _resampled(truth: Terrain, grid: Grid) -> np.ndarray:
+    """``truth`` sampled bilinearly at the posts of ``grid`` (same CRS, north-up), (R, C)
+    float64. Separable: a post's truth row depends on its y only and its column on its x
+    only, so the taps are two 1-D index vectors and the grid is filled strip by strip. Posts
+    in the half cell between the truth's outer centres and its edge take the edge value."""
+    t = truth.grid.transform
+    x, y = grid.xy()
+    rows_t, cols_t = truth.shape
+    r_lo, r_w = _axis_taps((y - t.f) / t.e - 0.5, rows_t)
+    c_lo, c_w = _axis_taps((x - t.c) / t.a - 0.5, cols_t)
+    c_w1 = 1.0 - c_w
+    out = np.empty(grid.shape)
+    for r0, r1 in _strips((grid.shape[0], cols_t)):
+        top = truth.heights[r_lo[r0:r1]]  # (h, cols_t) rows above and below the posts
+        bottom = truth.heights[r_lo[r0:r1] + 1]
+        top *= (1.0 - r_w[r0:r1])[:, None]
+        bottom *= r_w[r0:r1, None]
+        top += bottom
+        del bottom
+        strip = out[r0:r1]
+        np.multiply(top[:, c_lo], c_w1, out=strip)
+        strip += top[:, c_lo + 1] * c_w
+    return out
+
+
+def _bilinear_at(array: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """Bilinear values (float64) of ``array`` (any dtype or layout: no copy of it) at pixel
+    coordinates inside ``[0, R-1] x [0, C-1]``."""
+    r, wr = _axis_taps(row, array.shape[0])
+    c, wc = _axis_taps(col, array.shape[1])
+    top = array[r, c] * (1.0 - wc) + array[r, c + 1] * wc
+    bottom = array[r + 1, c] * (1.0 - wc) + array[r + 1, c + 1] * wc
+    return top * (1.0 - wr) + bottom * wr
+
+
+def _noise_field(shape: tuple[int, int], length_px: float, white_fraction: float,
+                 rng: np.random.Generator) -> np.ndarray:
+    """The unit-variance noise of :func:`measured_dem`, float32 ``shape``.
+
+    A Gaussian random field of Gaussian covariance ``exp(-d**2 / L**2)`` (``L`` =
+    ``length_px`` posts; amplitude spectrum ``exp(-(pi k L)**2 / 2)``, that is white noise
+    convolved with a Gaussian of standard deviation ``L / 2``), standardised over the grid,
+    mixed with white noise so that ``white_fraction`` of the variance is white.
+
+    The Gaussian filter is separable: white noise on a grid padded by ``4 L`` (twice the
+    kernel's +-4 sigma reach, so that the periodic transform does not wrap into the grid) is
+    filtered along x strip of rows by strip of rows, then along y strip of columns by strip
+    of columns, in float32 and in place: one padded float32 array, no 2-D transform.
+    """
+    rows, cols = shape
+    pad = min(math.ceil(4.0 * length_px) + 8, max(shape))
+    size = (_fft.next_fast_len(rows + pad, real=True), _fft.next_fast_len(cols + pad, real=True))
+    field = np.empty(size, dtype=np.float32)
+    rng.standard_normal(dtype=np.float32, out=field)
+
+    def gain(n: int) -> np.ndarray:
+        return np.exp(-0.5 * (np.pi * length_px * np.fft.rfftfreq(n)) ** 2).astype(np.float32)
+
+    along_x, along_y = gain(size[1]), gain(size[0])[:, None]
+    for r0, r1 in _strips(size):
+        spectrum = _fft.rfft(field[r0:r1], axis=1, workers=_WORKERS)
+        spectrum *= along_x
+        field[r0:r1] = _fft.irfft(spectrum, n=size[1], axis=1, workers=_WORKERS)
+    step = max(1, _STRIP_POSTS // size[0])
+    for c0 in range(0, cols, step):  # only the grid's columns and rows are needed from here
+        c1 = min(cols, c0 + step)
+        spectrum = _fft.rfft(field[:, c0:c1], axis=0, workers=_WORKERS)
+        spectrum *= along_y
+        field[:rows, c0:c1] = _fft.irfft(spectrum, n=size[0], axis=0, workers=_WORKERS)[:rows]
+    del spectrum
+    noise = field[:rows, :cols]
+    strips = list(_strips(shape))
+    mean = sum(float(noise[r0:r1].sum(dtype=np.float64)) for r0, r1 in strips) / noise.size
+    var = sum(float(np.square(noise[r0:r1] - np.float32(mean), dtype=np.float64).sum())
+              for r0, r1 in strips) / noise.size
+    k_corr = math.sqrt(1.0 - white_fraction) / (math.sqrt(var) or 1.0)
+    k_white = np.float32(math.sqrt(white_fraction))
+    for r0, r1 in strips:
+        block = noise[r0:r1]
+        block -= np.float32(mean)
+        block *= np.float32(k_corr)
+        block += k_white * rng.standard_normal((r1 - r0, cols), dtype=np.float32)
+    return noise
