@@ -227,10 +227,16 @@ class ReportConfig:
     ----------
     distance_plot : bool
         Residuals at the ICPs against the distance from the image centre (Aguilar et al.
-        Fig. 4).
+        Fig. 4): of the on-board model, and after RPCV-0 and RPCV-1-style image-space
+        corrections fitted to all the image's GCPs.
+    gcp_study : bool
+        ICP RMSE after RPCV-0 and RPCV-1-style corrections against the number of GCPs, ten
+        random subsets per count (Aguilar et al. Figs. 3, 6, 7;
+        :func:`geoblock.simulate.study.gcp_count_study`).
     """
 
     distance_plot: bool = False
+    gcp_study: bool = False
 
 
 @dataclass(frozen=True)
@@ -545,8 +551,9 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
         texture_contrast=r.number(rd, "texture_contrast", w, 0.5, low=0.0, high=1.0),
     )
     rp = r.table(data, "report", "")
-    r.known(rp, ("distance_plot",), "report.")
-    report = ReportConfig(distance_plot=r.boolean(rp, "distance_plot", "report.", False))
+    r.known(rp, ("distance_plot", "gcp_study"), "report.")
+    report = ReportConfig(distance_plot=r.boolean(rp, "distance_plot", "report.", False),
+                          gcp_study=r.boolean(rp, "gcp_study", "report.", False))
     return Scenario(name, description, seed, images, terrain, tuple(dems), points, render,
                     report, method, source)
 
@@ -685,7 +692,7 @@ def _teo(variant: str) -> dict[str, Any]:
                    "sigma_e": 3.0, "sigma_n": 3.0, "sigma_h": 3.0},
         "render": {"enabled": True, "dtype": "uint8", "noise_dn": 1.0,
                    "texture_scale_px": 1.0},
-        "report": {"distance_plot": False},
+        "report": {"distance_plot": False, "gcp_study": False},
     }
 
 
@@ -717,7 +724,7 @@ def _aguilar(variant: str) -> dict[str, Any]:
                    "sigma_h": 0.1},
         "render": {"enabled": True, "dtype": "uint8", "noise_dn": 1.0,
                    "texture_scale_px": 1.0},
-        "report": {"distance_plot": True},
+        "report": {"distance_plot": True, "gcp_study": True},
     }
 
 
@@ -742,7 +749,7 @@ def _chen(variant: str) -> dict[str, Any]:
                    "sigma_n": 1.0, "sigma_h": 1.0},
         "render": {"enabled": True, "dtype": "uint8", "noise_dn": 1.0,
                    "texture_scale_px": 1.0},
-        "report": {"distance_plot": False},
+        "report": {"distance_plot": False, "gcp_study": False},
     }
 
 
@@ -925,6 +932,7 @@ def run_scenario(
         report/ictp_accuracy.csv      per strip pair, when there are ICTPs
         report/errors_<id>.png        error vectors of the on-board model (GCPs, ICPs)
         report/residual_vs_distance.png   with report.distance_plot
+        report/rmse_vs_gcps_<image>.png   with report.gcp_study
         timings.json                  seconds per stage (the only file that changes run to run)
 
     Parameters
@@ -1108,6 +1116,32 @@ def _onboard_errors(sims: Mapping[str, Any], pts: Any, point_errors: Any) -> Any
                                     image=m.image[keep])
 
 
+def _refinement_points(pts: Any, image_id: str) -> tuple[Any, Any]:
+    """``(ControlPoints of the image's GCPs as measured, CheckPoints of its ICPs with their
+    truth)``; None for a kind the image does not have."""
+    from geoblock.adjust import ControlPoints
+    from geoblock.simulate.study import CheckPoints
+
+    m, g = pts.image, pts.ground
+    index = {pid: i for i, pid in enumerate(g.id.tolist())}
+    out: list[Any] = []
+    for kind in ("gcp", "icp"):
+        sel = np.flatnonzero((m.image == image_id) & (m.kind == kind))
+        if sel.size == 0:
+            out.append(None)
+            continue
+        k = np.array([index[i] for i in m.id[sel].tolist()], dtype=np.intp)
+        if kind == "gcp":
+            out.append(ControlPoints(id=m.id[sel], lon=g.lon[k], lat=g.lat[k], h=g.h[k],
+                                     row=m.row[sel], col=m.col[sel], sigma_row=m.sigma[sel],
+                                     sigma_col=m.sigma[sel], sigma_e=g.sigma_e[k],
+                                     sigma_n=g.sigma_n[k], sigma_h=g.sigma_h[k]))
+        else:
+            out.append(CheckPoints(g.lon_true[k], g.lat_true[k], g.h_true[k],
+                                   m.row_true[sel], m.col_true[sel]))
+    return out[0], out[1]
+
+
 def _write_text(path: Path, text: str) -> Path:
     from geoblock.report._files import write_atomic
 
@@ -1202,21 +1236,49 @@ def _write_report(scenario: Scenario, folder: Path, sims: Mapping[str, Any], tru
         error_vector_plot(e, n, sel.e, sel.n, sel.kind, path=path,
                           title=f"{image_id}: on-board model at GCPs and ICPs")
         files[f"report:errors_{image_id}"] = path
-    if scenario.report.distance_plot:
+    study_md = []
+    if scenario.report.distance_plot or scenario.report.gcp_study:
+        from geoblock.errors import GeoblockError
+        from geoblock.report import rmse_vs_gcp_count
+        from geoblock.simulate.study import gcp_count_study, refined_errors
+
         series = {}
         for image_id, sim in sims.items():
+            gcps, icps = _refinement_points(pts, image_id)
             sel = onboard.select(image=image_id, kind="ICP")
-            if not len(sel):
+            if not len(sel) or icps is None:
                 continue
             k = np.array([np.flatnonzero(pts.ground.id == i)[0] for i in sel.id.tolist()])
             d = distance_from_image_centre(sim.true_model, pts.ground.lon_true[k],
                                            pts.ground.lat_true[k], pts.ground.h_true[k])
             series[f"{image_id} on-board"] = (d, np.hypot(sel.e, sel.n))
-        if series:
+            if gcps is None:
+                continue
+            d_icp = distance_from_image_centre(sim.true_model, icps.lon, icps.lat, icps.h)
+            for order, label in ((0, "RPCV-0"), (1, "RPCV-1")):
+                try:
+                    err = refined_errors(sim.onboard_model, gcps, icps, order)
+                except GeoblockError:  # too few GCPs in this image for the order
+                    continue
+                series[f"{image_id} {label}, {len(gcps)} GCPs"] = (d_icp, err)
+            if scenario.report.gcp_study:
+                counts = [n for n in (3, 6, 9, 18, 27, 45) if n <= len(gcps)]
+                if len(gcps) not in counts:
+                    counts.append(len(gcps))
+                study = gcp_count_study(sim.onboard_model, gcps, icps, counts=counts,
+                                        repeats=10, seed=scenario.seed)
+                path = folder / f"rmse_vs_gcps_{image_id}.png"
+                rmse_vs_gcp_count(study.series(), path=path,
+                                  title=f"{image_id}: ICP RMSE after refinement vs GCPs")
+                files[f"report:rmse_vs_gcps_{image_id}"] = path
+                study_md += [f"### {image_id}", "",
+                             "RMSE 2D at the ICPs (m), mean (min-max) over 10 random GCP "
+                             "subsets:", "", study.table().rstrip(), "",
+                             f"![{image_id}](rmse_vs_gcps_{image_id}.png)", ""]
+        if scenario.report.distance_plot and series:
             path = folder / "residual_vs_distance.png"
             residual_vs_distance(series, path=path,
-                                 title="On-board model: 2D error at ICPs vs distance from the "
-                                       "image centre")
+                                 title="2D error at ICPs vs distance from the image centre")
             files["report:residual_vs_distance"] = path
 
     # Markdown
@@ -1268,6 +1330,14 @@ def _write_report(scenario: Scenario, folder: Path, sims: Mapping[str, Any], tru
                   "accuracy).", "", ictp_md.rstrip(), ""]
     if "report:residual_vs_distance" in files:
         lines += ["## Error against the distance from the image centre", "",
+                  "2D error at the ICPs of the on-board model, and after RPCV-0 (shift) and "
+                  "RPCV-1 (affine) image-space corrections fitted to all the image's GCPs "
+                  "(Aguilar et al. Fig. 4): what a shift cannot absorb (an along-track drift) "
+                  "grows with the distance from the image centre.", "",
                   "![residual vs distance](residual_vs_distance.png)", ""]
+    if study_md:
+        lines += ["## ICP accuracy against the number of GCPs", "",
+                  "RPCV-0 and RPCV-1-style corrections of the on-board model fitted to random "
+                  "subsets of the GCPs (Aguilar et al. Figs. 3, 6, 7).", ""] + study_md
     files["report"] = _write_text(folder / "report.md", "\n".join(lines) + "\n")
     return files
