@@ -316,9 +316,9 @@ def test_aguilar_small_reproduces_the_rpcv0_drift_with_distance(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(PRESETS))
-def test_small_presets_run_in_seconds(name, tmp_path):
+def test_small_presets_run(name, tmp_path):
+    # (their time and memory are measured in benchmarks/bench_simulate.py)
     result = run_scenario(preset(name, "small"), tmp_path, render=False)
-    assert result.timings["total"] < 60
     assert (tmp_path / "report" / "report.md").is_file()
     sc = result.scenario
     assert result.points.count("gcp") >= sc.points.gcp * len(sc.images)

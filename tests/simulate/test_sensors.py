@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -150,10 +149,10 @@ def test_deterministic_for_a_seed():
     assert not np.allclose(c.errors.position_bias_m, a.errors.position_bias_m)
 
 
-def test_small_scenes_build_fast_and_full_presets_have_the_papers_sizes():
-    t0 = time.perf_counter()
-    simulate_sensor(SPOT5_STRIPS_SMALL[0])
-    assert time.perf_counter() - t0 < 1.0
+def test_small_scenes_build_and_full_presets_have_the_papers_sizes():
+    # (speed is measured in benchmarks/bench_simulate.py, not asserted here)
+    small = simulate_sensor(SPOT5_STRIPS_SMALL[0])
+    assert small.true_model.shape == SPOT5_STRIPS_SMALL[0].shape
     assert [s.incidence_deg for s in SPOT5_STRIPS] == [5.2, 5.7, -14.8]
     assert all(s.gsd_m == 2.5 and s.altitude_m == 832e3 and s.inclination_deg == 98.7
                for s in SPOT5_STRIPS)
