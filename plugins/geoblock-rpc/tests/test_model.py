@@ -43,7 +43,9 @@ def open_rpc(relative: str) -> RpcModel:
     path = DATA / relative
     if not path.is_file():
         pytest.skip(f"real test data not found: {path} (set GEOBLOCK_TEST_DATA)")
-    model = geoblock.open_model(path)
+    # model="rpc": PHRDIMAP_*.XML also carries a physical model, which geoblock-spot reads
+    # first when no model is named
+    model = geoblock.open_model(path, model="rpc")
     assert isinstance(model, RpcModel)
     return model
 

@@ -61,6 +61,9 @@ def _gdal_project(rpc_gdal: RPC, lon, lat, h):
 
 
 def _open(data_dir: Path, rel: str, **options):
+    # model="rpc": DIMAP documents with a physical model (PHRDIMAP_*.XML, SPOT6.XML) open as
+    # geoblock-spot's line-of-sight model when no model is named
+    options.setdefault("model", "rpc")
     return geoblock.open_model(data_dir / rel, **options)
 
 

@@ -1,4 +1,4 @@
-"""geoblock-spot's hook implementations: its models and the DIMAP reader."""
+"""geoblock-spot's hook implementations: its models and the DIMAP v1 / v2 readers."""
 
 from __future__ import annotations
 
@@ -14,26 +14,44 @@ def geoblock_register_sensor_models(register):
 
 @geoblock.hookimpl
 def geoblock_read_sensor_model(path, model_name, options):
-    """A SPOT 1-5 DIMAP v1 ``METADATA.DIM`` -> its line-of-sight model (a ``linescan`` model).
+    """SPOT/Pleiades physical metadata -> its line-of-sight model (a ``linescan`` model).
 
-    Answers for ``model_name`` None or ``"linescan"``; returns None for other files. Options
-    (see :func:`geoblock_spot.los.spot_dimap_model`): ``parameters`` (``"dg"`` default or
-    ``"linescan"``), ``use_attitude``, ``height_range``.
+    * a SPOT 1-5 DIMAP v1 ``METADATA.DIM`` (or its product directory):
+      :func:`geoblock_spot.los.spot_dimap_model`, options ``parameters`` (``"dg"`` default or
+      ``"linescan"``), ``use_attitude``, ``height_range``;
+    * a DIMAP v2 ``DIM_*.XML`` sensor product (SPOT 6/7, Pleiades) or a Pleiades internal
+      ``PHRDIMAP_*.XML``: :func:`geoblock_spot.dimap2.dimap2_model`, options ``parameters``
+      (``"linescan"`` default, or ``"dg"`` with ``accuracy_m``), ``accuracy_m``,
+      ``attitude_step_s``, ``height_range``.
+
+    Answers for ``model_name`` None or ``"linescan"``; returns None for other files. This
+    hook is not ``trylast``, so for a document that also carries an RFM (``PHRDIMAP_*.XML``'s
+    ``Global_RFM``) the physical model wins when no model is named; ask for
+    ``model="rpc"`` to get the RFM (geoblock-rpc's generic reader is ``trylast``, ARCHITECTURE
+    section 5).
     """
     if model_name not in (None, "linescan"):
         return None
+    from geoblock.errors import ModelFormatError
     from geoblock_spot.dimap import is_spot_dimap
 
-    if not is_spot_dimap(path):
-        return None
-    from geoblock.errors import ModelFormatError
-    from geoblock_spot.los import spot_dimap_model
+    if is_spot_dimap(path):
+        from geoblock_spot.los import spot_dimap_model
 
-    known = {"parameters", "use_attitude", "height_range"}
+        reader, known = spot_dimap_model, {"parameters", "use_attitude", "height_range"}
+        kind = "SPOT DIMAP"
+    else:
+        from geoblock_spot.dimap2 import dimap2_model, is_dimap2
+
+        if not is_dimap2(path):
+            return None
+        reader = dimap2_model
+        known = {"parameters", "accuracy_m", "attitude_step_s", "height_range"}
+        kind = "DIMAP v2 / Pleiades"
     unknown = sorted(set(options) - known)
     if unknown:
         raise ModelFormatError(
-            f"{str(path)!r}: unknown option(s) {unknown} for a SPOT DIMAP model; known: "
+            f"{str(path)!r}: unknown option(s) {unknown} for a {kind} model; known: "
             f"{sorted(known)}"
         )
-    return spot_dimap_model(path, **dict(options))
+    return reader(path, **dict(options))
