@@ -6,15 +6,19 @@ uniform over the image (pixel edges included) with heights uniform in -500..9000
 backprojected, and the ground points so obtained are projected back. Prints one line per case:
 best-of-N wall time, throughput, the peak of memory allocated by numpy during one call
 (tracemalloc), and for the directions the round-trip error. Nothing here is asserted; the
-figures go into the closing notes of the issues that change them.
+figures go into the closing notes of the issues that change them. Then the same for the
+DIMAP line-of-sight models of ``SPOT5.DIM`` (DIMAP v1) and ``SPOT6.XML`` (DIMAP v2) from the
+shared test data (``GEOBLOCK_TEST_DATA`` or ``../shared/data``), skipped when absent.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import tracemalloc
 import warnings
+from pathlib import Path
 
 import numpy as np
 from geoblock_spot.chenlee import ChenLeeModel
@@ -23,6 +27,8 @@ from geoblock_spot.fit import fit_chenlee
 import geoblock
 from geoblock.adjust import ControlPoints, resect
 from geoblock.testing.synthetic import ConstantVelocityPushbroom
+
+HERE = Path(__file__).resolve()
 
 
 def measure(label, func, n_points, repeat=3):
@@ -82,6 +88,24 @@ def main() -> None:
     print(f"  fit_chenlee to a 6000 x 6000 pushbroom: {fit.n_points} grid points, "
           f"max {fit.max_px:.2e} px, check max {fit.check_max_px:.2e} px")
     measure("fit_chenlee (15 x 15 x 5 grid)", lambda: fit_chenlee(push), fit.n_points, repeat=1)
+
+    # the DIMAP line-of-sight models (geoblock's linescan model) of the shared test data
+    data = Path(os.environ.get("GEOBLOCK_TEST_DATA", HERE.parents[2] / "shared" / "data"))
+    for name in ("cosicorr3d/test_dataset/SPOT5.DIM", "cosicorr3d/test_dataset/SPOT6.XML"):
+        path = data / name
+        if not path.exists():
+            print(f"  {name}: not in {data}, skipped")
+            continue
+        los = geoblock.open_model(path)
+        rows, cols = los.shape
+        lr = rng.uniform(-0.5, rows - 0.5, n)
+        lc = rng.uniform(-0.5, cols - 0.5, n)
+        lh = rng.uniform(-500.0, 9000.0, n)
+        lg = los.backproject(lr, lc, lh)
+        measure(f"{path.name} line of sight: backproject ({n} pts)",
+                lambda los=los, lr=lr, lc=lc, lh=lh: los.backproject(lr, lc, lh), n)
+        measure(f"{path.name} line of sight: project ({n} pts)",
+                lambda los=los, lg=lg: los.project(lg.lon, lg.lat, lg.h), n)
 
 
 if __name__ == "__main__":
