@@ -169,3 +169,31 @@ def test_newton_inversions_converge_everywhere(synthetic_model, n):
     (r2, c2), status = m.project_with_status(g.lon, g.lat, g.h)
     assert np.all(status == Status.CONVERGED)
     assert np.max(np.hypot(r2 - r, c2 - c)) < 1e-6
+
+
+def test_chunk_points_bounds_kernel_calls_and_changes_no_result():
+    """SensorModelBase.chunk_points: project/backproject hand the kernels at most that many
+    points, with the same results as one call (NaN isolation included)."""
+    from geoblock.testing.synthetic import ConstantVelocityPushbroom
+
+    class Chunked(ConstantVelocityPushbroom):
+        chunk_points = 7
+        sizes: list = []
+
+        def _image_to_ground(self, row, col, h):
+            Chunked.sizes.append(row.shape[0])
+            return super()._image_to_ground(row, col, h)
+
+    whole = ConstantVelocityPushbroom.example()
+    chunked = Chunked(*[getattr(whole, "_" + k) for k in ("shape", "origin", "position",
+                                                            "velocity", "line_period", "ifov")])
+    rng = np.random.default_rng(4)
+    row, col = rng.uniform(0, 799, 50), rng.uniform(0, 999, 50)
+    h = rng.uniform(0, 1000, 50)
+    row[[3, 17]] = np.nan
+    a, sa = whole.backproject_with_status(row, col, h)
+    b, sb = chunked.backproject_with_status(row, col, h)
+    assert max(Chunked.sizes) <= 7 and sum(Chunked.sizes) == 48
+    np.testing.assert_array_equal(sa, sb)
+    for x, y in zip(a, b, strict=True):
+        assert np.array_equal(x, y, equal_nan=True)

@@ -67,6 +67,9 @@ class SensorModelBase(abc.ABC):
     newton_stall_px: ClassVar[float] = 1e-7
     #: Iteration cap of the Newton inversions.
     newton_max_iterations: ClassVar[int] = 30
+    #: Largest number of points ``project``/``backproject`` hand to a kernel at once (bounds
+    #: the memory of large calls of kernels with per-point temporaries); None: all at once.
+    chunk_points: ClassVar[int | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -201,7 +204,18 @@ class SensorModelBase(abc.ABC):
         status = np.full(shape, np.uint8(Status.INVALID_INPUT), dtype=np.uint8)
         ok = np.isfinite(a) & np.isfinite(b) & np.isfinite(c)
         if ok.any():
-            ka, kb, ks = _unpack(kernel(a[ok], b[ok], c[ok]), int(ok.sum()), self, kernel_name)
+            fa, fb, fc = a[ok], b[ok], c[ok]
+            n = fa.shape[0]
+            size = self.chunk_points
+            if size is None or n <= size:
+                ka, kb, ks = _unpack(kernel(fa, fb, fc), n, self, kernel_name)
+            else:
+                ka, kb = np.empty(n), np.empty(n)
+                ks = np.empty(n, dtype=np.uint8)
+                for start in range(0, n, size):
+                    sl = slice(start, start + size)
+                    ka[sl], kb[sl], ks[sl] = _unpack(kernel(fa[sl], fb[sl], fc[sl]),
+                                                     fa[sl].shape[0], self, kernel_name)
             out_a[ok] = ka
             out_b[ok] = kb
             status[ok] = ks

@@ -587,8 +587,9 @@ class LinescanModel(SensorModelBase):
     search_max_iterations: ClassVar[int] = 60
     #: a step below this many lines that does not reduce the residual ends the search
     search_stall_lines: ClassVar[float] = 1e-7
-    #: points processed at once by the kernels (bounds the memory of large calls)
-    chunk_points: ClassVar[int] = 65536
+    #: points handed to the kernels at once by the base class (bounds the memory of large
+    #: calls: ~125 MiB per 10^6 points instead of ~800)
+    chunk_points: ClassVar[int | None] = 65536
     #: the time search covers the image rows plus a margin on each side, the larger of this
     #: fraction of the image's duration and ``search_margin_s`` seconds (limited to the
     #: ephemeris and attitude spans); ground points imaged outside it are OUT_OF_DOMAIN
@@ -818,9 +819,6 @@ class LinescanModel(SensorModelBase):
 
     # ------------------------------------------------------------------ image -> ground
     def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
-        return _chunked(self._image_to_ground_chunk, self.chunk_points, row, col, h)
-
-    def _image_to_ground_chunk(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         t = self._line_times.time(row)
         pos, _, rot, _ = self._state(t)
         u = np.einsum("nij,nj->ni", rot, self._look.at(col))
@@ -918,9 +916,6 @@ class LinescanModel(SensorModelBase):
         return t_out, col_out, status
 
     def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
-        return _chunked(self._ground_to_image_chunk, self.chunk_points, lon, lat, h)
-
-    def _ground_to_image_chunk(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
         g = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
         t, col, status = self._solve_time(g)
         return self._line_times.row(t), col, status
@@ -1058,19 +1053,6 @@ class LinescanModel(SensorModelBase):
 
 
 # ==================================================================================== internals
-def _chunked(kernel, size: int, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple:
-    """Run ``kernel(a, b, c) -> (x, y, status)`` over consecutive chunks of ``size`` points."""
-    n = a.shape[0]
-    if n <= size:
-        return kernel(a, b, c)
-    x, y = np.empty(n), np.empty(n)
-    status = np.empty(n, dtype=np.uint8)
-    for start in range(0, n, size):
-        sl = slice(start, start + size)
-        x[sl], y[sl], status[sl] = kernel(a[sl], b[sl], c[sl])
-    return x, y, status
-
-
 def _nan_safe(jac: np.ndarray) -> np.ndarray:
     """Replace non-finite or singular 2x2 systems by the identity (their results are masked)."""
     bad = ~np.all(np.isfinite(jac), axis=(-2, -1))

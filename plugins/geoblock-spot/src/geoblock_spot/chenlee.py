@@ -356,6 +356,8 @@ class ChenLeeModel(SensorModelBase):
     domain_margin: ClassVar[float] = 2.0
     #: Validity domain across track: look angles (``atan(Sy y / f)``) up to this, degrees.
     max_look_angle_deg: ClassVar[float] = 45.0
+    #: Points handed to the kernels at once (bounds the memory of large calls).
+    chunk_points: ClassVar[int | None] = 65536
 
     def __init__(
         self,
