@@ -8,10 +8,9 @@ Nothing here is asserted; the figures go into the closing notes of the issues th
 from __future__ import annotations
 
 import argparse
-import time
-import tracemalloc
 import warnings
 
+import _measure  # benchmarks/_measure.py (run as a script)
 import numpy as np
 import pyproj
 
@@ -22,23 +21,7 @@ from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
 
 def measure(label, func, n_points, repeat=5):
-    func()  # warm up
-    best = min(_timed(func) for _ in range(repeat))
-    tracemalloc.start()
-    func()
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    print(
-        f"{label:58s} {best * 1e3:9.2f} ms  {n_points / best / 1e6:8.3f} Mpt/s  "
-        f"peak {peak / 2**20:7.1f} MiB ({peak / max(n_points, 1):6.0f} B/pt)"
-    )
-    return best
-
-
-def _timed(func):
-    t0 = time.perf_counter()
-    func()
-    return time.perf_counter() - t0
+    return _measure.measure(label, func, n_points, repeat)
 
 
 def main() -> None:

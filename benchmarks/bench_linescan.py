@@ -11,35 +11,14 @@ one call (tracemalloc) and the round-trip error. Nothing is asserted.
 from __future__ import annotations
 
 import argparse
-import time
-import tracemalloc
 import warnings
 
 import numpy as np
+from _measure import measure  # benchmarks/_measure.py (run as a script)
 
 import geoblock
 from geoblock.models import SensorModelBase
 from geoblock.models.linescan import LinescanModel
-
-
-def measure(label, func, n_points, repeat=3):
-    func()  # warm up
-    best = min(_timed(func) for _ in range(repeat))
-    tracemalloc.start()
-    func()
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    print(
-        f"{label:58s} {best * 1e3:9.1f} ms  {n_points / best / 1e6:8.3f} Mpt/s  "
-        f"peak {peak / 2**20:7.1f} MiB ({peak / max(n_points, 1):6.0f} B/pt)"
-    )
-    return best
-
-
-def _timed(func):
-    t0 = time.perf_counter()
-    func()
-    return time.perf_counter() - t0
 
 
 def main() -> None:
