@@ -392,7 +392,8 @@ class RasterDem(DemBase):
     def native_bounds(self) -> tuple[float, float, float, float]:
         """``(left, bottom, right, top)`` in the file's CRS."""
         rows, cols = self._shape
-        x, y = affine_apply(self._transform, *(np.array([0, cols, cols, 0]), np.array([0, 0, rows, rows])))
+        x, y = affine_apply(self._transform, np.array([0, cols, cols, 0]),
+                            np.array([0, 0, rows, rows]))
         return (float(np.min(x)), float(np.min(y)), float(np.max(x)), float(np.max(y)))
 
     @property

@@ -226,7 +226,8 @@ def _prepare(src, row, col, kernel, nodata):
     elif src.dtype == np.float16:
         src = src.astype(np.float32)
     src = np.ascontiguousarray(src)
-    row, col = np.broadcast_arrays(np.asarray(row, dtype=np.float64), np.asarray(col, dtype=np.float64))
+    row, col = np.broadcast_arrays(np.asarray(row, dtype=np.float64),
+                                   np.asarray(col, dtype=np.float64))
     shape = row.shape
     row = np.ascontiguousarray(row).ravel()
     col = np.ascontiguousarray(col).ravel()
