@@ -45,6 +45,33 @@ def lonlat_to_crs(
     return np.asarray(x, float), np.asarray(y, float)
 
 
+def box_window(pixel_coords, shape: tuple[int, int], lonlat: bool,
+               bounds) -> tuple[int, int, int, int] | None:
+    """``(r0, r1, c0, c1)`` of a grid's posts whose interpolation kernels reach into a
+    lon/lat box ``(west, south, east, north)``, or None when the box misses the grid.
+
+    The box outline (21 points per edge) is mapped into the grid through ``pixel_coords``
+    (``(lon, lat) -> (row, col)``), with a margin for the bicubic kernel's reach.
+    """
+    w, s, e, n = (float(v) for v in bounds)
+    t = np.linspace(0.0, 1.0, 21)
+    lon = np.concatenate([w + t * (e - w), np.full(21, e), e - t * (e - w), np.full(21, w)])
+    lat = np.concatenate([np.full(21, s), s + t * (n - s), np.full(21, n), n - t * (n - s)])
+    row, col = pixel_coords(lon, lat)
+    rows, cols = shape
+    if lonlat and e - w >= 360.0:
+        col = np.array([-1.0, cols + 1.0])
+    if not (np.isfinite(row).any() and np.isfinite(col).any()):
+        return None
+    r0 = max(int(np.floor(np.nanmin(row))) - 1, 0)
+    r1 = min(int(np.floor(np.nanmax(row))) + 3, rows)
+    c0 = max(int(np.floor(np.nanmin(col))) - 1, 0)
+    c1 = min(int(np.floor(np.nanmax(col))) + 3, cols)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    return (r0, r1, c0, c1)
+
+
 class GridDem(DemBase):
     """Heights on a regular grid in memory.
 
@@ -155,32 +182,16 @@ class GridDem(DemBase):
         Only the window of posts around the box is read (its outline is mapped into the
         grid), so a small box on a large grid costs little."""
         rows, cols = self._heights_array.shape
-        if bounds is None:
-            r0, r1, c0, c1 = 0, rows, 0, cols
-        else:
-            w, s, e, n = (float(v) for v in bounds)
-            t = np.linspace(0.0, 1.0, 21)
-            lon = np.concatenate([w + t * (e - w), np.full(21, e), e - t * (e - w),
-                                  np.full(21, w)])
-            lat = np.concatenate([np.full(21, s), s + t * (n - s), np.full(21, n),
-                                  n - t * (n - s)])
-            row, col = self.pixel_coords(lon, lat)
-            horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
-            if _is_lonlat(horizontal) and e - w >= 360.0:
-                col = np.array([-1.0, cols + 1.0])
-            if not (np.isfinite(row).any() and np.isfinite(col).any()):
-                return (float("nan"), float("nan"))
-            r0 = max(int(np.floor(np.nanmin(row))) - 1, 0)
-            r1 = min(int(np.floor(np.nanmax(row))) + 3, rows)
-            c0 = max(int(np.floor(np.nanmin(col))) - 1, 0)
-            c1 = min(int(np.floor(np.nanmax(col))) + 3, cols)
-            if r0 >= r1 or c0 >= c1:
-                return (float("nan"), float("nan"))
+        horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
+        window = (0, rows, 0, cols) if bounds is None else box_window(
+            self.pixel_coords, (rows, cols), _is_lonlat(horizontal), bounds)
+        if window is None:
+            return (float("nan"), float("nan"))
+        r0, r1, c0, c1 = window
         h = self._heights_array[r0:r1, c0:c1]
         if self._geoid is not None:
             rr, cc = np.mgrid[r0:r1, c0:c1]
             x, y = affine_apply(self._transform, *(cc + 0.5, rr + 0.5))
-            horizontal = self._crs.sub_crs_list[0] if self._crs.is_compound else self._crs
             if _is_lonlat(horizontal):
                 lon, lat = x, y
             else:

@@ -52,7 +52,7 @@ from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
-from geoblock.dem.grid import _is_lonlat, lonlat_to_crs
+from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
 from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s, sample
 from geoblock.errors import DemCoverageError, DemError
 
@@ -749,21 +749,7 @@ class RasterDem(DemBase):
 
     def _window(self, bounds) -> tuple[int, int, int, int] | None:
         """``(r0, r1, c0, c1)`` of the pixels whose kernels reach into a lon/lat box."""
-        w, s, e, n = (float(v) for v in bounds)
-        t = np.linspace(0.0, 1.0, 21)
-        lon = np.concatenate([w + t * (e - w), np.full(21, e), e - t * (e - w), np.full(21, w)])
-        lat = np.concatenate([np.full(21, s), s + t * (n - s), np.full(21, n), n - t * (n - s)])
-        row, col = self.pixel_coords(lon, lat)
-        if self._lonlat and e - w >= 360.0:
-            col = np.array([-1.0, self._shape[1] + 1.0])
-        rows, cols = self._shape
-        r0 = max(int(np.floor(np.nanmin(row))) - 1, 0)
-        r1 = min(int(np.floor(np.nanmax(row))) + 3, rows)
-        c0 = max(int(np.floor(np.nanmin(col))) - 1, 0)
-        c1 = min(int(np.floor(np.nanmax(col))) + 3, cols)
-        if r0 >= r1 or c0 >= c1:
-            return None
-        return (r0, r1, c0, c1)
+        return box_window(self.pixel_coords, self._shape, self._lonlat, bounds)
 
     # ------------------------------------------------------------------ values
     def to_dict(self) -> dict[str, Any]:
