@@ -13,10 +13,12 @@ from geoblock.models.corrections import ImageCorrection
 
 @hookimpl
 def geoblock_register_sensor_models(register):
+    from geoblock.adjust.collocation import CollocationCorrection
     from geoblock.models.linescan import LinescanModel
     from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
     register(ImageCorrection)
+    register(CollocationCorrection)
     register(LinescanModel)
     register(AffineCamera)
     register(ConstantVelocityPushbroom)

@@ -63,7 +63,7 @@ def test_read_example_resolves_paths_relative_to_the_file(tmp_path):
     assert block.images[0].raster == tmp_path / "strip1.tif"
     assert block.images[0].parameters == "dg"
     assert dict(block.images[0].sigmas) == {"dp_along": 10.0, "roll_bias": 1e-5}
-    assert block.images[1].raster is None and block.images[1].parameters == "default"
+    assert block.images[1].raster is None and block.images[1].parameters is None
     assert block.image_points == tmp_path / "pts" / "image.csv"
     assert block.truth == Path("/abs/truth.csv")
     assert block.dem == BlockDem(str(tmp_path / "dem.tif"), "geoid",

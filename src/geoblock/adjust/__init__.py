@@ -1,6 +1,20 @@
-"""Adjustment: single-image resection now; the DEM-aided block adjustment builds on it."""
+"""Adjustment: single-image resection and the DEM-aided block adjustment (MBA, DG, RFM),
+least-squares collocation, robust estimation and accuracy statistics."""
 
-from geoblock.adjust.observations import ControlPoints
+from geoblock.adjust.block import (
+    DEM_CONTROLS,
+    MODES,
+    ROBUST,
+    Block,
+    BlockResult,
+    MeasurementResults,
+    ParameterEstimates,
+    PointResults,
+    adjust,
+)
+from geoblock.adjust.collocation import Collocation, CollocationCorrection, fit_collocation
+from geoblock.adjust.methods import METHODS, prepare_model
+from geoblock.adjust.observations import KINDS, ControlPoints, GroundPoints, ImagePoints
 from geoblock.adjust.resect import PointResiduals, ResectionResult, resect
 from geoblock.adjust.statistics import (
     POINT_KINDS,
@@ -16,7 +30,24 @@ from geoblock.adjust.statistics import (
 )
 
 __all__ = [
+    "DEM_CONTROLS",
+    "KINDS",
+    "METHODS",
+    "MODES",
     "POINT_KINDS",
+    "ROBUST",
+    "Block",
+    "BlockResult",
+    "Collocation",
+    "CollocationCorrection",
+    "GroundPoints",
+    "ImagePoints",
+    "MeasurementResults",
+    "ParameterEstimates",
+    "PointResults",
+    "adjust",
+    "fit_collocation",
+    "prepare_model",
     "AccuracyStats",
     "ConfidenceInterval",
     "ControlPoints",

@@ -10,7 +10,7 @@ import numpy as np
 from geoblock.errors import ObservationError
 from geoblock.typing import ArrayLike
 
-__all__ = ["ControlPoints"]
+__all__ = ["KINDS", "ControlPoints", "GroundPoints", "ImagePoints"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,3 +101,267 @@ class ControlPoints:
         """The points selected by a boolean mask or index array."""
         mask = np.asarray(mask)
         return ControlPoints(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
+
+
+KINDS = ("gcp", "icp", "tp", "ictp")
+"""Point kinds: ground control (GCP), independent check (ICP), tie (TP) and independent check
+tie point (ICTP). GCPs and TPs enter an adjustment; ICPs and ICTPs are only evaluated."""
+
+
+def _text(value: ArrayLike, n: int | None, name: str, where: str) -> np.ndarray:
+    out = np.atleast_1d(np.asarray(value)).astype(str)
+    if out.ndim != 1 or (n is not None and out.shape != (n,)):
+        raise ObservationError(f"{where}: {name} has shape {out.shape}, expected ({n},)")
+    return out
+
+
+def _floats(value: ArrayLike, n: int, name: str, where: str) -> np.ndarray:
+    try:
+        out = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ObservationError(f"{where}: {name} must be numbers") from None
+    if out.ndim == 0:
+        out = np.full(n, float(out))
+    if out.shape != (n,):
+        raise ObservationError(f"{where}: {name} has shape {out.shape}, expected ({n},)")
+    return out
+
+
+def lookup(table: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """Index of each of ``keys`` in the 1-D array ``table`` of unique strings; -1 if absent."""
+    table = np.asarray(table)
+    keys = np.asarray(keys)
+    if table.size == 0:
+        return np.full(keys.shape, -1, np.intp)
+    order = np.argsort(table, kind="stable")
+    pos = np.clip(np.searchsorted(table[order], keys), 0, table.size - 1)
+    hit = table[order][pos] == keys
+    return np.where(hit, order[pos], -1).astype(np.intp)
+
+
+def _name_points(ids: np.ndarray, bad: np.ndarray) -> str:
+    listed = ", ".join(ids[bad][:5].tolist())
+    return listed + (f" and {int(bad.sum()) - 5} more" if bad.sum() > 5 else "")
+
+
+@dataclass(frozen=True, eq=False)
+class GroundPoints:
+    """Surveyed ground points of a block, one row per point (the ground CSV of a block).
+
+    Parameters
+    ----------
+    id : array_like of str, (N,)
+        Unique point identifiers (the ``id`` column of the image measurements refers to them).
+    kind : array_like of str, (N,)
+        ``gcp`` (enters the adjustment as a weighted ground observation) or ``icp``
+        (independent check point: only evaluated).
+    lon, lat : array_like, (N,)
+        Degrees (WGS84).
+    h : array_like, (N,)
+        Metres above the WGS84 ellipsoid.
+    sigma_e, sigma_n, sigma_h : array_like, (N,) or scalar
+        Standard deviations of the surveyed coordinates along local east, north and up,
+        metres (0: error-free; the adjustment floors them at 1 mm).
+    """
+
+    id: np.ndarray
+    kind: np.ndarray
+    lon: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray
+    sigma_e: np.ndarray | float = 0.0
+    sigma_n: np.ndarray | float = 0.0
+    sigma_h: np.ndarray | float = 0.0
+
+    def __post_init__(self) -> None:
+        where = "ground points"
+        ids = _text(self.id, None, "id", where)
+        n = ids.shape[0]
+        kind = np.char.lower(np.char.strip(_text(self.kind, n, "kind", where)))
+        bad = ~np.isin(kind, ("gcp", "icp"))
+        if bad.any():
+            raise ObservationError(
+                f"{where}: kind must be 'gcp' or 'icp' (points {_name_points(ids, bad)} have "
+                f"{sorted(set(kind[bad].tolist()))}); tie points have no ground coordinates")
+        values = {}
+        for name in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"):
+            arr = _floats(getattr(self, name), n, name, where)
+            bad = ~np.isfinite(arr)
+            if name.startswith("sigma"):
+                bad |= arr < 0
+            elif name == "lat":
+                bad |= np.abs(arr) > 90
+            elif name == "lon":
+                bad |= np.abs(arr) > 360
+            elif name == "h":
+                bad |= np.abs(arr) > 1e5
+            if bad.any():
+                rule = "finite and >= 0" if name.startswith("sigma") else "a finite coordinate"
+                raise ObservationError(f"{where}: {name} must be {rule} (points "
+                                       f"{_name_points(ids, bad)})")
+            arr.flags.writeable = False
+            values[name] = arr
+        unique, counts = np.unique(ids, return_counts=True)
+        if (counts > 1).any():
+            raise ObservationError(f"{where}: duplicate point ids {unique[counts > 1][:5].tolist()}")
+        ids.flags.writeable = False
+        kind.flags.writeable = False
+        object.__setattr__(self, "id", ids)
+        object.__setattr__(self, "kind", kind)
+        for name, arr in values.items():
+            object.__setattr__(self, name, arr)
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, ArrayLike], *, source: str = "ground points",
+                     kind: str = "gcp") -> GroundPoints:
+        """From the columns of a ground CSV (:func:`geoblock.io.read_points`).
+
+        ``id, lon, lat, h`` are required; ``sigma_e, sigma_n, sigma_h`` default to 0 and
+        ``kind`` to ``kind``.
+        """
+        missing = [c for c in ("id", "lon", "lat", "h") if c not in columns]
+        if missing:
+            raise ObservationError(f"{source}: missing column(s) {missing}")
+        n = len(np.asarray(columns["id"]))
+        try:
+            return cls(columns["id"], columns.get("kind", np.full(n, kind)), columns["lon"],
+                       columns["lat"], columns["h"], columns.get("sigma_e", 0.0),
+                       columns.get("sigma_n", 0.0), columns.get("sigma_h", 0.0))
+        except ObservationError as exc:
+            raise ObservationError(str(exc).replace("ground points", source, 1)) from None
+
+    def subset(self, mask: ArrayLike) -> GroundPoints:
+        """The points selected by a boolean mask or an index array."""
+        m = np.asarray(mask)
+        return GroundPoints(*(getattr(self, f.name)[m] for f in fields(self)))
+
+
+@dataclass(frozen=True, eq=False)
+class ImagePoints:
+    """Image measurements of a block, one row per measurement (the image CSV of a block).
+
+    Parameters
+    ----------
+    id : array_like of str, (M,)
+        Point identifier: a ground point's id (GCP, ICP) or a tie point's.
+    image : array_like of str, (M,)
+        Image id.
+    row, col : array_like, (M,)
+        Measured image coordinates, pixels (pixel-centre convention).
+    sigma_row, sigma_col : array_like, (M,) or scalar
+        Standard deviations, pixels (default 0.5 px, Teo et al.).
+    kind : array_like of str, (M,), optional
+        ``gcp``, ``icp``, ``tp`` or ``ictp``; empty strings are resolved by
+        :meth:`resolve_kinds` (a point with ground coordinates takes their kind, any other
+        one is a TP).
+    """
+
+    id: np.ndarray
+    image: np.ndarray
+    row: np.ndarray
+    col: np.ndarray
+    sigma_row: np.ndarray | float = 0.5
+    sigma_col: np.ndarray | float = 0.5
+    kind: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        where = "image measurements"
+        ids = _text(self.id, None, "id", where)
+        n = ids.shape[0]
+        image = _text(self.image, n, "image", where)
+        kind = (np.full(n, "", dtype="<U4") if self.kind is None
+                else np.char.lower(np.char.strip(_text(self.kind, n, "kind", where))))
+        bad = ~np.isin(kind, ("", *KINDS))
+        if bad.any():
+            raise ObservationError(f"{where}: kind must be one of {KINDS} (points "
+                                   f"{_name_points(ids, bad)})")
+        values = {}
+        for name in ("row", "col", "sigma_row", "sigma_col"):
+            arr = _floats(getattr(self, name), n, name, where)
+            bad = ~np.isfinite(arr) | (np.abs(arr) > 1e9)
+            if name.startswith("sigma"):
+                bad |= arr <= 0
+            if bad.any():
+                rule = "finite and > 0" if name.startswith("sigma") else "finite"
+                raise ObservationError(f"{where}: {name} must be {rule} (points "
+                                       f"{_name_points(ids, bad)})")
+            arr.flags.writeable = False
+            values[name] = arr
+        key = np.char.add(np.char.add(ids, "\x00"), image)
+        unique, counts = np.unique(key, return_counts=True)
+        if (counts > 1).any():
+            dup = [k.replace("\x00", " in ") for k in unique[counts > 1][:5].tolist()]
+            raise ObservationError(f"{where}: a point is measured twice in one image: {dup}")
+        for name, arr in (("id", ids), ("image", image), ("kind", kind)):
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
+        for name, arr in values.items():
+            object.__setattr__(self, name, arr)
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, ArrayLike], *, source: str = "image measurements",
+                     sigma: float = 0.5) -> ImagePoints:
+        """From the columns of an image CSV: ``id, image, row, col`` required; ``sigma``
+        (both axes) or ``sigma_row, sigma_col`` default to ``sigma`` pixels; ``kind``
+        optional."""
+        missing = [c for c in ("id", "image", "row", "col") if c not in columns]
+        if missing:
+            raise ObservationError(f"{source}: missing column(s) {missing}")
+        both = columns.get("sigma", sigma)
+        try:
+            return cls(columns["id"], columns["image"], columns["row"], columns["col"],
+                       columns.get("sigma_row", both), columns.get("sigma_col", both),
+                       columns.get("kind"))
+        except ObservationError as exc:
+            raise ObservationError(str(exc).replace("image measurements", source, 1)) from None
+
+    def subset(self, mask: ArrayLike) -> ImagePoints:
+        """The measurements selected by a boolean mask or an index array."""
+        m = np.asarray(mask)
+        return ImagePoints(self.id[m], self.image[m], self.row[m], self.col[m],
+                           self.sigma_row[m], self.sigma_col[m], self.kind[m])
+
+    def resolve_kinds(self, ground: GroundPoints | None) -> ImagePoints:
+        """Kinds filled in and checked against the ground points.
+
+        A measurement without a kind takes its ground point's kind, or ``tp`` when the point
+        has no ground coordinates. A measurement marked ``gcp``/``icp`` whose point is not in
+        the ground file, or whose ground kind differs, is an error naming the point.
+        """
+        k = (np.full(len(self), -1, np.intp) if ground is None
+             else lookup(ground.id, self.id))
+        found = k >= 0
+        ground_kind = np.where(found, ground.kind[k] if ground is not None else "", "")
+        kind = np.where(self.kind == "", np.where(found, ground_kind, "tp"), self.kind)
+        bad = np.isin(kind, ("gcp", "icp")) & ~found
+        if bad.any():
+            raise ObservationError(f"image measurements: points {_name_points(self.id, bad)} are "
+                                   "marked gcp/icp but have no row in the ground points")
+        bad = found & (kind != ground_kind) & np.isin(kind, ("gcp", "icp"))
+        if bad.any():
+            raise ObservationError(f"image measurements: points {_name_points(self.id, bad)} "
+                                   "have another kind than in the ground points")
+        bad = found & np.isin(kind, ("tp", "ictp"))
+        if bad.any():
+            raise ObservationError(f"image measurements: points {_name_points(self.id, bad)} "
+                                   "are marked tp/ictp but have ground coordinates")
+        return ImagePoints(self.id, self.image, self.row, self.col, self.sigma_row,
+                           self.sigma_col, kind)
+
+    def control_points(self, ground: GroundPoints, image: str,
+                       kinds: tuple[str, ...] = ("gcp",)) -> ControlPoints:
+        """The one-image view: measurements of ``kinds`` in ``image`` joined with their
+        ground coordinates, as :class:`ControlPoints` for :func:`geoblock.adjust.resect`."""
+        meas = self.resolve_kinds(ground)
+        sel = (meas.image == image) & np.isin(meas.kind, kinds)
+        k = lookup(ground.id, meas.id[sel])
+        return ControlPoints(meas.id[sel], ground.lon[k], ground.lat[k], ground.h[k],
+                             meas.row[sel], meas.col[sel], meas.sigma_row[sel],
+                             meas.sigma_col[sel], ground.sigma_e[k], ground.sigma_n[k],
+                             ground.sigma_h[k])

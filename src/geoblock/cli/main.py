@@ -237,6 +237,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     -------
     GeoblockGroup
     """
+    from geoblock.cli.adjust import adjust
     from geoblock.cli.dem_info import dem_info
     from geoblock.cli.demo import demo
     from geoblock.cli.info import info
@@ -283,6 +284,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     for command in (plugins, info, project, backproject):
         cli.add_command(command)
     cli.add_command(refine)
+    cli.add_command(adjust)
     cli.add_command(localize)
     cli.add_command(dem_info)
     cli.add_command(ortho)

@@ -1,6 +1,14 @@
 """The one place geoblock opens files: sensor models, DEMs, images, point files and block files."""
 
-from geoblock.io.blocks import Block, BlockDem, BlockImage, read_block, write_block
+from geoblock.io.blocks import (
+    Block,
+    BlockDem,
+    BlockImage,
+    OpenedBlock,
+    open_block,
+    read_block,
+    write_block,
+)
 from geoblock.io.dem import open_dem, write_dem
 from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
 from geoblock.io.models import open_model, write_model
@@ -11,6 +19,8 @@ __all__ = [
     "BlockDem",
     "BlockImage",
     "ImageSource",
+    "OpenedBlock",
+    "open_block",
     "open_dem",
     "open_image",
     "open_model",

@@ -54,7 +54,8 @@ from typing import Any
 from geoblock.errors import GeoblockIOError, ModelFormatError
 from geoblock.io._atomic import atomic_path
 
-__all__ = ["Block", "BlockDem", "BlockFileError", "BlockImage", "dumps_toml", "read_block",
+__all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage", "OpenedBlock",
+           "dumps_toml", "open_block", "read_block",
            "write_block"]
 
 BLOCK_FORMAT_VERSION = 1
@@ -99,17 +100,26 @@ class BlockImage:
         Sensor-model file (vendor metadata or model JSON), absolute.
     raster : pathlib.Path or None
         The image's pixels, absolute, if given.
-    parameters : str
-        Name of the parameter set to adjust (a preset of the model, or ``"default"``).
+    parameters : str or None
+        Name of the parameter set to adjust (a preset of the model such as ``mba`` or ``dg``,
+        or ``"default"``); None: the method's.
     sigmas : mapping of str to float
         A-priori sigmas of named parameters, overriding the model's.
+    correction : int or None
+        Order (0, 1, 2) of an image-space correction wrapped around the model (RPCV-0,
+        RPCV-1, order 2); None: the method's.
+    accuracy_m : float or None
+        The product's location accuracy (1 sigma, metres), for presets whose a-priori sigmas
+        derive from it (``dg``, ``mba``).
     """
 
     id: str
     model: Path
     raster: Path | None = None
-    parameters: str = "default"
+    parameters: str | None = None
     sigmas: Mapping[str, float] = field(default_factory=dict)
+    correction: int | None = None
+    accuracy_m: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "sigmas", _readonly(dict(self.sigmas)))
@@ -127,11 +137,15 @@ class BlockDem:
         Datum of the heights; ``None``: as the file states.
     geoid : pathlib.Path or None
         Geoid grid, absolute.
+    sigma : float or None
+        Standard deviation of the DEM's heights, metres (its accuracy, used as the weight of
+        the DEM elevation control); None: the adjustment's default (5 m).
     """
 
     source: str
     vertical: str | None = None
     geoid: Path | None = None
+    sigma: float | None = None
 
 
 @dataclass(frozen=True)
@@ -157,6 +171,8 @@ class Block:
         Output name to absolute path.
     name : str
         Free label.
+    mode : {"block", "single"}
+        Adjust all images together (with TPs and the DEM) or each alone with its GCPs.
     """
 
     images: tuple[BlockImage, ...]
@@ -168,6 +184,7 @@ class Block:
     options: Mapping[str, Any] = field(default_factory=dict)
     outputs: Mapping[str, Path] = field(default_factory=dict)
     name: str = ""
+    mode: str = "block"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "images", tuple(self.images))
@@ -201,6 +218,19 @@ def _check(block: Block, where: str) -> None:
     if not _METHOD.fullmatch(block.method):
         raise BlockFileError(f"{where}: 'method' must be a lower-case name such as 'mba', 'dg', "
                              f"'rfm', got {block.method!r}")
+        if im.correction is not None and im.correction not in (0, 1, 2):
+            raise BlockFileError(f"{where}: 'images[{k}].correction' must be 0, 1 or 2, got "
+                                 f"{im.correction!r}")
+        if im.accuracy_m is not None and not (math.isfinite(im.accuracy_m)
+                                              and im.accuracy_m > 0):
+            raise BlockFileError(f"{where}: 'images[{k}].accuracy_m' must be a number > 0, got "
+                                 f"{im.accuracy_m!r}")
+    if block.mode not in ("block", "single"):
+        raise BlockFileError(f"{where}: 'mode' must be 'block' or 'single', got {block.mode!r}")
+    if block.dem is not None and block.dem.sigma is not None and not (
+            math.isfinite(block.dem.sigma) and block.dem.sigma > 0):
+        raise BlockFileError(f"{where}: 'dem.sigma' must be a number > 0 (metres), got "
+                             f"{block.dem.sigma!r}")
     if block.dem is not None and block.dem.vertical not in (None, "ellipsoid", "geoid"):
         raise BlockFileError(f"{where}: 'dem.vertical' must be 'ellipsoid' or 'geoid', got "
                              f"{block.dem.vertical!r}")
@@ -277,6 +307,7 @@ def read_block(path: str | os.PathLike[str]) -> Block:
                              f"version {BLOCK_FORMAT_VERSION})")
     label = _take(data, "name", str, name, default="")
     method = _take(data, "method", str, name, required=True)
+    mode = _take(data, "mode", str, name, default="block")
 
     images_raw = _take(data, "images", list, name, required=True)
     images = []
@@ -289,14 +320,17 @@ def read_block(path: str | os.PathLike[str]) -> Block:
         model = _resolve(base, _take(item, "model", str, where, required=True), f"{where}.model")
         raster_text = _take(item, "raster", str, where)
         raster = None if raster_text is None else _resolve(base, raster_text, f"{where}.raster")
-        parameters = _take(item, "parameters", str, where, default="default")
+        parameters = _take(item, "parameters", str, where)
         sigmas = _take(item, "sigmas", dict, where, default={})
         for key, value in sigmas.items():
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise BlockFileError(f"{where}: 'sigmas.{key}' must be a number, got {value!r}")
-        _no_more(item, where, "id, model, raster, parameters, sigmas")
+        correction = _take(item, "correction", int, where)
+        accuracy = _take(item, "accuracy_m", (int, float), where)
+        _no_more(item, where, "id, model, raster, parameters, sigmas, correction, accuracy_m")
         images.append(BlockImage(image_id, model, raster, parameters,
-                                 {k: float(v) for k, v in sigmas.items()}))
+                                 {k: float(v) for k, v in sigmas.items()}, correction,
+                                 None if accuracy is None else float(accuracy)))
 
     points = dict(_take(data, "points", dict, name, default={}))
     where = f"{name}: points"
@@ -316,9 +350,11 @@ def read_block(path: str | os.PathLike[str]) -> Block:
             source = str(_resolve(base, source, f"{where}.path"))
         vertical = _take(dem_raw, "vertical", str, where)
         geoid_text = _take(dem_raw, "geoid", str, where)
-        _no_more(dem_raw, where, "path, vertical, geoid")
+        sigma = _take(dem_raw, "sigma", (int, float), where)
+        _no_more(dem_raw, where, "path, vertical, geoid, sigma")
         dem = BlockDem(source, vertical,
-                       None if geoid_text is None else _resolve(base, geoid_text, f"{where}.geoid"))
+                       None if geoid_text is None else _resolve(base, geoid_text, f"{where}.geoid"),
+                       None if sigma is None else float(sigma))
 
     options = _take(data, "options", dict, name, default={})
     outputs_raw = dict(_take(data, "outputs", dict, name, default={}))
@@ -327,10 +363,10 @@ def read_block(path: str | os.PathLike[str]) -> Block:
         if not isinstance(value, str):
             raise BlockFileError(f"{name}: 'outputs.{key}' must be a path (string), got {value!r}")
         outputs[key] = _resolve(base, value, f"{name}: outputs.{key}")
-    _no_more(data, name, "version, name, method, images, points, dem, options, outputs")
+    _no_more(data, name, "version, name, method, mode, images, points, dem, options, outputs")
     try:
         return Block(tuple(images), method, paths["ground"], paths["image"], paths["truth"], dem,
-                     options, outputs, label)
+                     options, outputs, label, mode)
     except BlockFileError as exc:
         raise BlockFileError(str(exc).replace("<Block>", name)) from None
 
@@ -358,6 +394,8 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
     if block.name:
         out["name"] = block.name
     out["method"] = block.method
+    if block.mode != "block":
+        out["mode"] = block.mode
     points = {k: rel(v) for k, v in (("ground", block.ground_points), ("image", block.image_points),
                                      ("truth", block.truth)) if v is not None}
     if points:
@@ -368,6 +406,8 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
             dem["vertical"] = block.dem.vertical
         if block.dem.geoid is not None:
             dem["geoid"] = rel(block.dem.geoid)
+        if block.dem.sigma is not None:
+            dem["sigma"] = block.dem.sigma
         out["dem"] = dem
     if block.options:
         out["options"] = _thaw(block.options)
@@ -378,9 +418,14 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
         item: dict[str, Any] = {"id": im.id, "model": rel(im.model)}
         if im.raster is not None:
             item["raster"] = rel(im.raster)
-        item["parameters"] = im.parameters
+        if im.parameters is not None:
+            item["parameters"] = im.parameters
         if im.sigmas:
             item["sigmas"] = dict(im.sigmas)
+        if im.correction is not None:
+            item["correction"] = im.correction
+        if im.accuracy_m is not None:
+            item["accuracy_m"] = im.accuracy_m
         images.append(item)
     out["images"] = images
     return out
@@ -488,3 +533,122 @@ def dumps_toml(data: Mapping[str, Any]) -> str:
 
     emit(data, ())
     return "\n".join(lines).lstrip("\n") + "\n"
+
+
+# ---------------------------------------------------------------------------- opening
+#: engine options a block file's ``[options]`` table may set, with their types
+ADJUST_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
+    "dem_control": (str,), "tp_sigma_factor": (int, float), "tp_sigma_m": (int, float),
+    "tp_prior": (str,), "robust": (str,), "robust_k": (int, float), "alpha": (float,),
+    "max_iterations": (int,), "tolerance": (int, float), "collocation": (bool, Mapping),
+    "sigma_px": (int, float),
+})
+_COLLOCATION_KEYS = ("filtering_ratio", "d_max")
+
+
+@dataclass(frozen=True, eq=False)
+class OpenedBlock:
+    """A block file opened for :func:`geoblock.adjust.adjust`.
+
+    Attributes
+    ----------
+    spec : Block
+        The file's description.
+    block : geoblock.adjust.Block
+        Models (with their parameter sets), points and DEM.
+    options : dict
+        Keyword arguments of :func:`geoblock.adjust.adjust` (``mode`` included).
+    """
+
+    spec: Block
+    block: Any
+    options: dict[str, Any]
+
+
+def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
+    """Open a block file: read it, open every model, point file and the DEM.
+
+    The method (``mba``, ``dg``, ``rfm``, ``rpcv0``, ``rpcv1``, ``default``: see
+    :mod:`geoblock.adjust.methods`) gives each image its parameter set or correction unless
+    the image states its own; ``[options]`` may set the engine's options
+    (:data:`ADJUST_OPTIONS`) and nothing else.
+
+    Raises
+    ------
+    BlockFileError
+        An unknown method or option, a value of the wrong type, a model or point file that
+        cannot be used (the message names the file and the field).
+    GeoblockError
+        Whatever opening a model, a point file or the DEM raises (names the file).
+    """
+    from geoblock.adjust.block import Block as AdjustBlock
+    from geoblock.adjust.methods import METHODS, prepare_model
+    from geoblock.adjust.observations import GroundPoints, ImagePoints
+    from geoblock.errors import AdjustmentError
+    from geoblock.io.dem import open_dem
+    from geoblock.io.models import open_model
+    from geoblock.io.points import read_points
+
+    spec = path if isinstance(path, Block) else read_block(path)
+    name = "<block>" if isinstance(path, Block) else str(path)
+    if spec.method not in METHODS:
+        raise BlockFileError(f"{name}: 'method' {spec.method!r} is not known; methods: "
+                             f"{', '.join(METHODS)}")
+    method = METHODS[spec.method]
+    options: dict[str, Any] = {"mode": spec.mode}
+    if method["collocation"]:
+        options["collocation"] = True
+    sigma_px = 0.5
+    for key, value in spec.options.items():
+        where = f"{name}: options.{key}"
+        if key not in ADJUST_OPTIONS:
+            raise BlockFileError(f"{where}: unknown option; options: {', '.join(ADJUST_OPTIONS)}")
+        kinds = ADJUST_OPTIONS[key]
+        if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
+            raise BlockFileError(f"{where} must be a {' or '.join(k.__name__ for k in kinds)}, "
+                                 f"got {value!r}")
+        if key == "sigma_px":
+            sigma_px = float(value)
+            continue
+        if key == "collocation" and isinstance(value, Mapping):
+            unknown = sorted(set(value) - set(_COLLOCATION_KEYS))
+            if unknown:
+                raise BlockFileError(f"{where}: unknown key(s) {unknown}; allowed: "
+                                     f"{', '.join(_COLLOCATION_KEYS)}")
+            value = dict(value)
+        options[key] = value
+    if spec.image_points is None:
+        raise BlockFileError(f"{name}: 'points.image' (the image measurements) is required")
+    try:
+        measurements = ImagePoints.from_columns(
+            read_points(spec.image_points, required=("row", "col")),
+            source=str(spec.image_points), sigma=sigma_px)
+        ground = None if spec.ground_points is None else GroundPoints.from_columns(
+            read_points(spec.ground_points, required=("lon", "lat", "h")),
+            source=str(spec.ground_points))
+    except AdjustmentError as exc:
+        raise BlockFileError(str(exc)) from None
+    models = {}
+    for k, im in enumerate(spec.images):
+        where = f"{name}: images[{k}] ({im.id})"
+        model = open_model(im.model)
+        try:
+            models[im.id] = prepare_model(
+                model, parameters=im.parameters if im.parameters is not None
+                else method["parameters"],
+                correction=im.correction if im.correction is not None else method["correction"],
+                sigmas=dict(im.sigmas), accuracy_m=im.accuracy_m, where=where)
+        except AdjustmentError as exc:
+            raise BlockFileError(str(exc)) from None
+    dem = None
+    dem_sigma = 5.0
+    if spec.dem is not None:
+        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical,
+                       **({} if spec.dem.geoid is None else {"geoid": spec.dem.geoid}))
+        if spec.dem.sigma is not None:
+            dem_sigma = spec.dem.sigma
+    try:
+        block = AdjustBlock(models, measurements, ground, dem, dem_sigma)
+    except AdjustmentError as exc:
+        raise BlockFileError(f"{name}: {exc}") from None
+    return OpenedBlock(spec, block, options)
