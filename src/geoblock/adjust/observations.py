@@ -109,7 +109,9 @@ tie point (ICTP). GCPs and TPs enter an adjustment; ICPs and ICTPs are only eval
 
 
 def _text(value: ArrayLike, n: int | None, name: str, where: str) -> np.ndarray:
-    out = np.atleast_1d(np.asarray(value)).astype(str)
+    out = np.asarray(value).astype(str)
+    if out.ndim == 0:
+        out = np.full(1 if n is None else n, str(out))
     if out.ndim != 1 or (n is not None and out.shape != (n,)):
         raise ObservationError(f"{where}: {name} has shape {out.shape}, expected ({n},)")
     return out
