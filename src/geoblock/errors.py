@@ -22,6 +22,7 @@ __all__ = [
     "NoIntersectionWarning",
     "ObservationError",
     "OutOfBoundsWarning",
+    "ParameterSetError",
     "PluginError",
     "PluginWarning",
     "SerializationError",
@@ -92,6 +93,15 @@ class AdjustmentError(GeoblockError, RuntimeError):
 
 class ObservationError(AdjustmentError, ValueError):
     """Observations are invalid (non-finite values, bad sigmas, duplicate ids); names the points."""
+
+
+class ParameterSetError(AdjustmentError, ValueError):
+    """A model cannot give the parameter set asked for (``with_parameter_set``).
+
+    The set's name is not one of the model's ``parameter_sets``, an option is unknown to the
+    set, or the set needs an option that was not given (``accuracy_m``); the message names
+    the model, the set requested and the sets or options it knows.
+    """
 
 
 class TooFewPointsError(AdjustmentError, ValueError):

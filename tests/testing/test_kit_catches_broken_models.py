@@ -503,6 +503,11 @@ class DuckTypedAffine:
     def with_parameters(self, values):
         return type(self)(self._inner.with_parameters(values))
 
+    parameter_sets = ("default",)
+
+    def with_parameter_set(self, name, **options):
+        return type(self)(self._inner.with_parameter_set(name, **options))
+
     def to_dict(self):
         return {**self._inner.to_dict(), "model": self.name}
 
@@ -538,7 +543,7 @@ def test_check_sensor_model_reports_every_failed_check():
     with pytest.raises(AssertionError) as info:
         check_sensor_model(pushbroom(LossyToDict), n=3)
     text = str(info.value)
-    assert text.startswith("4 of 13 conformance checks failed for LossyToDict 'broken-lossy'"), text
+    assert text.startswith("4 of 14 conformance checks failed for LossyToDict 'broken-lossy'"), text
     for name in (
         "check_with_parameters", "check_serialization", "check_pickle", "check_dask_token"
     ):

@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import abc
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any, ClassVar, Self
 
 import numpy as np
 
 from geoblock import coords
 from geoblock._array import broadcast_float64, warn_status
-from geoblock.errors import GeoblockError
+from geoblock.errors import GeoblockError, ParameterSetError
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import (
     ArrayLike,
@@ -53,7 +53,9 @@ class SensorModelBase(abc.ABC):
     implement ``shape``, ``height_range``, ``parameters``, ``with_parameters``, ``to_dict``,
     ``from_dict`` and at least one of ``_ground_to_image`` / ``_image_to_ground``. They may
     override ``partials_ground`` and ``partials_parameters`` with analytic versions, which the
-    conformance kit (:mod:`geoblock.testing`) compares with the numeric defaults.
+    conformance kit (:mod:`geoblock.testing`) compares with the numeric defaults, and offer
+    named parameter presets through ``parameter_sets`` and ``with_parameter_set`` (the
+    default: ``"default"`` only, the parameters as they are).
 
     Models are immutable values: ``with_parameters`` returns a new model.
     """
@@ -112,6 +114,77 @@ class SensorModelBase(abc.ABC):
     @abc.abstractmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
         """Rebuild a model from :meth:`to_dict` output."""
+
+    # ---------------------------------------------------------------- parameter sets
+    #: Names of the parameter presets :meth:`with_parameter_set` accepts; ``"default"`` (the
+    #: parameters as the model has them) always among them. Subclasses with presets override
+    #: it (a class attribute, or a property when the presets depend on the instance).
+    parameter_sets: ClassVar[tuple[str, ...]] = ("default",)
+
+    def with_parameter_set(self, name: str, **options: Any) -> Self:
+        """A copy of the model whose ``parameters`` are the preset ``name``.
+
+        A preset fixes which parameters an adjustment estimates and their a-priori sigmas
+        (names, values, units, sigmas, adjustable mask): a block adjustment asks any model for
+        ``"dg"`` or ``"mba"`` this way without knowing its class. ``"default"`` is accepted by
+        every model and means the parameters as the model has them now.
+
+        The base class knows ``"default"`` only (it returns ``self``). Subclasses with presets
+        list them in :attr:`parameter_sets`, handle their names and options here and pass
+        everything else on with ``super().with_parameter_set(name, **options)``.
+
+        Parameters
+        ----------
+        name : str
+            One of :attr:`parameter_sets`.
+        **options
+            Preset-specific options (``accuracy_m=`` for sets whose sigmas derive from a
+            location accuracy); ``"default"`` takes none.
+
+        Returns
+        -------
+        SensorModel
+            A model of the same type and shape; ``self`` for ``"default"``.
+
+        Raises
+        ------
+        ParameterSetError
+            ``name`` is not one of :attr:`parameter_sets`, or an option is unknown to the set
+            (the message names the model, the set and what it knows).
+        """
+        self._parameter_set_request(name, options)
+        return self
+
+    def _parameter_set_request(
+        self, name: object, options: Mapping[str, Any], accepted: Collection[str] = ()
+    ) -> None:
+        """Refuse a ``with_parameter_set`` request whose name or options are unknown.
+
+        Parameters
+        ----------
+        name : object
+            The requested set; must be one of :attr:`parameter_sets`.
+        options : mapping
+            The options given.
+        accepted : collection of str
+            The options the set ``name`` accepts.
+
+        Raises
+        ------
+        ParameterSetError
+        """
+        known = tuple(self.parameter_sets)
+        label = f"{type(self).__qualname__} {getattr(self, 'name', '?')!r}"
+        if not isinstance(name, str) or name not in known:
+            raise ParameterSetError(
+                f"{label} has no parameter set {name!r}; its parameter sets are {list(known)}"
+            )
+        unknown = sorted(set(options) - set(accepted))
+        if unknown:
+            takes = f"it accepts {sorted(accepted)}" if accepted else "it takes no options"
+            raise ParameterSetError(
+                f"{label}: parameter set {name!r} has no option(s) {unknown}; {takes}"
+            )
 
     # ---------------------------------------------------------------- kernels
     def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:

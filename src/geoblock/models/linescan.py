@@ -14,6 +14,11 @@ and twelve adjustable parameters, bias and drift of the position (in the orbital
 the attitude (small rotations about the sensor axes), the physical corrections of Teo et al.'s
 direct georeferencing and of Chen & Lee's bundle adjustment.
 
+Parameter sets (:meth:`LinescanModel.with_parameter_set`): ``"default"`` (the parameters as
+they are), ``"linescan"`` (the twelve, free) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
+direct-georeferencing correction, position biases and drifts and attitude biases with a-priori
+sigmas from the product's location accuracy, attitude rates fixed).
+
 Frames
 ------
 * ECEF: EPSG:4978, metres.
@@ -36,12 +41,13 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from geoblock import coords
-from geoblock.errors import ModelFormatError, SerializationError
+from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models.base import SensorModelBase
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = [
+    "DG_ADJUSTABLE",
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
     "Attitude",
@@ -49,6 +55,7 @@ __all__ = [
     "LineTimes",
     "LinescanModel",
     "LookDirections",
+    "dg_parameters",
     "matrix_to_quaternion",
     "orbital_frame",
     "quaternion_to_matrix",
@@ -64,6 +71,13 @@ PARAMETER_NAMES: tuple[str, ...] = (
 )
 #: Units of :data:`PARAMETER_NAMES`.
 PARAMETER_UNITS: tuple[str, ...] = ("m",) * 3 + ("m/s",) * 3 + ("rad",) * 3 + ("rad/s",) * 3
+#: The parameters the ``"dg"`` set lets an adjustment change (:func:`dg_parameters`): position
+#: biases and drifts, attitude biases; the attitude rates stay fixed.
+DG_ADJUSTABLE: tuple[str, ...] = (
+    "dp_along", "dp_across", "dp_radial",
+    "dp_along_rate", "dp_across_rate", "dp_radial_rate",
+    "roll_bias", "pitch_bias", "yaw_bias",
+)
 
 _CONVERGED = np.uint8(Status.CONVERGED)
 _OUT = np.uint8(Status.OUT_OF_DOMAIN)
@@ -562,6 +576,10 @@ class LinescanModel(SensorModelBase):
     parameters : ParameterSet, optional
         Values (and sigmas, adjustable mask) of some or all of :data:`PARAMETER_NAMES`
         (missing ones are 0 and fixed out of the set); default all twelve, zero, free.
+    location_accuracy_m : float, optional
+        The product's stated location accuracy (1 sigma, metres, > 0), from which the ``"dg"``
+        parameter set derives its a-priori sigmas when :meth:`with_parameter_set` gets no
+        ``accuracy_m``; None (default) when unknown. Informational otherwise.
 
     Notes
     -----
@@ -574,10 +592,14 @@ class LinescanModel(SensorModelBase):
 
     Image -> ground intersects ``P' + s R' look(col)`` with the surface of height ``h``;
     ground -> image searches the time at which the ground point is in the detector plane.
+
+    Parameter sets (:attr:`parameter_sets`, :meth:`with_parameter_set`): ``"default"``,
+    ``"linescan"`` (all twelve free) and ``"dg"`` (:func:`dg_parameters`).
     """
 
     name: ClassVar[str] = "linescan"
     schema_version: ClassVar[int] = 1
+    parameter_sets: ClassVar[tuple[str, ...]] = ("default", "linescan", "dg")
 
     #: ray/height-surface intersection: tolerance (metres of height) and iteration cap
     intersection_tolerance_m: ClassVar[float] = 1e-7
@@ -607,6 +629,7 @@ class LinescanModel(SensorModelBase):
         epoch: str = "",
         height_range: tuple[float, float] = (-500.0, 9000.0),
         parameters: ParameterSet | None = None,
+        location_accuracy_m: float | None = None,
     ) -> None:
         try:
             rows, cols = (int(v) for v in shape)
@@ -639,6 +662,15 @@ class LinescanModel(SensorModelBase):
                         f"unknown parameter names {unknown}; known: {list(PARAMETER_NAMES)}")
         if not np.all(np.isfinite(parameters.values)):
             raise _fail("LinescanModel.parameters", "values must be finite")
+        if location_accuracy_m is not None:
+            try:
+                accuracy = float(location_accuracy_m)
+            except (TypeError, ValueError):
+                accuracy = float("nan")
+            if not (np.isfinite(accuracy) and accuracy > 0):
+                raise _fail("LinescanModel.location_accuracy_m",
+                            f"must be finite and > 0 (or None), got {location_accuracy_m!r}")
+            location_accuracy_m = accuracy
         self._shape = (rows, cols)
         self._ephemeris = ephemeris
         self._attitude = attitude
@@ -647,6 +679,7 @@ class LinescanModel(SensorModelBase):
         self._epoch = str(epoch)
         self._height_range = (h0, h1)
         self._parameters = parameters
+        self._location_accuracy_m = location_accuracy_m
         full = np.zeros(12)
         self._index = np.array([PARAMETER_NAMES.index(n) for n in parameters.names], dtype=np.intp)
         full[self._index] = parameters.values
@@ -691,16 +724,21 @@ class LinescanModel(SensorModelBase):
         """ISO-8601 UTC epoch of all times (informational)."""
         return self._epoch
 
+    @property
+    def location_accuracy_m(self) -> float | None:
+        """The product's stated location accuracy (1 sigma, metres), or None if unknown."""
+        return self._location_accuracy_m
+
     def with_parameters(self, values: ArrayLike | Mapping[str, float]) -> Self:
-        return type(self)(self._shape, self._ephemeris, self._attitude, self._look,
-                          self._line_times, epoch=self._epoch, height_range=self._height_range,
-                          parameters=self._parameters.with_values(values))
+        return self.replace(parameters=self._parameters.with_values(values))
 
     def replace(self, **changes: Any) -> Self:
-        """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``)."""
+        """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``,
+        ``location_accuracy_m=...``)."""
         args = {"shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
                 "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
-                "height_range": self._height_range, "parameters": self._parameters}
+                "height_range": self._height_range, "parameters": self._parameters,
+                "location_accuracy_m": self._location_accuracy_m}
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"replace: unknown fields {sorted(unknown)}")
@@ -709,9 +747,63 @@ class LinescanModel(SensorModelBase):
         eph, att, look, lt = (args.pop(k) for k in ("ephemeris", "attitude", "look", "line_times"))
         return type(self)(shape, eph, att, look, lt, **args)
 
+    # ------------------------------------------------------------------ parameter sets
+    def with_parameter_set(self, name: str, **options: Any) -> Self:
+        """A copy whose parameters are the preset ``name`` (see :attr:`parameter_sets`).
+
+        Parameters
+        ----------
+        name : {"default", "linescan", "dg"}
+            * ``"default"``: the parameters as they are (returns ``self``);
+            * ``"linescan"``: all twelve :data:`PARAMETER_NAMES`, free (infinite sigmas),
+              adjustable;
+            * ``"dg"``: Teo et al.'s direct-georeferencing set, :func:`dg_parameters`:
+              position biases and drifts and attitude biases adjustable
+              (:data:`DG_ADJUSTABLE`) with a-priori sigmas from the location accuracy,
+              attitude rates fixed.
+        **options
+            ``accuracy_m`` (float, ``"dg"`` only): the location accuracy (1 sigma, metres) the
+            sigmas derive from; default :attr:`location_accuracy_m`.
+
+        Returns
+        -------
+        LinescanModel
+            The same geometry: a preset sets names, units, a-priori sigmas and the adjustable
+            mask, and **keeps the current values** of the twelve parameters (0 for those the
+            current set leaves out, which is what the model uses for them), so it never
+            changes a projection nor drops a correction. The a-priori sigmas are about these
+            current values (an adjustment's pseudo-observations are centred on them); a full
+            a-priori ``covariance`` of the current set is replaced by the preset's sigmas.
+
+        Raises
+        ------
+        ParameterSetError
+            An unknown name or option, or ``"dg"`` with neither ``accuracy_m`` nor
+            :attr:`location_accuracy_m`.
+        """
+        if name == "linescan":
+            self._parameter_set_request(name, options)
+            params = ParameterSet(PARAMETER_NAMES, self._full, PARAMETER_UNITS)
+        elif name == "dg":
+            self._parameter_set_request(name, options, ("accuracy_m",))
+            accuracy = options.get("accuracy_m")
+            if accuracy is None:
+                accuracy = self._location_accuracy_m
+            if accuracy is None:
+                raise ParameterSetError(
+                    f"{type(self).__qualname__} {self.name!r}: parameter set 'dg' derives its "
+                    "a-priori sigmas from the product's location accuracy, which this model "
+                    "does not know (location_accuracy_m is None): pass accuracy_m= (1 sigma, "
+                    "metres)"
+                )
+            params = dg_parameters(self, accuracy).with_values(self._full)
+        else:
+            return super().with_parameter_set(name, **options)
+        return self.replace(parameters=params)
+
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "model": self.name,
             "schema_version": self.schema_version,
             "shape": list(self._shape),
@@ -723,6 +815,9 @@ class LinescanModel(SensorModelBase):
             "line_times": self._line_times.to_dict(),
             "parameters": self._parameters.to_dict(),
         }
+        if self._location_accuracy_m is not None:  # absent from older JSON: stays optional
+            out["location_accuracy_m"] = self._location_accuracy_m
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
@@ -743,6 +838,7 @@ class LinescanModel(SensorModelBase):
                 height_range=tuple(data.get("height_range", (-500.0, 9000.0))),
                 parameters=ParameterSet.from_dict(data["parameters"])
                 if "parameters" in data else None,
+                location_accuracy_m=data.get("location_accuracy_m"),
             )
         except KeyError as exc:
             raise SerializationError(f"{cls.name}: missing field {exc}") from exc
@@ -1050,6 +1146,63 @@ class LinescanModel(SensorModelBase):
         lines = LineTimes((rows - 1) / 2.0, 0.0, line_period)
         return cls((rows, cols), ephemeris, attitude, look, lines,
                    epoch="2003-06-21T02:30:00Z")
+
+
+# ================================================================================= parameter sets
+def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
+    """Teo et al.'s DG parameter set for a linescan model, sigmas from a location accuracy.
+
+    The direct-georeferencing correction: a first-degree polynomial orbital correction
+    ``dP(t)`` (``dp_along/across/radial`` and their ``_rate``) plus the three attitude biases
+    (``roll/pitch/yaw_bias``); the attitude rates stay in the set, fixed at 0.
+    :meth:`LinescanModel.with_parameter_set` ``("dg")`` gives the model with this set (and its
+    current parameter values).
+
+    Parameters
+    ----------
+    model : LinescanModel
+        The model whose geometry scales the sigmas (its parameter values are not used).
+    accuracy_m : float
+        The product's location accuracy, metres (1 sigma), > 0.
+
+    Returns
+    -------
+    ParameterSet
+        The twelve linescan names, values 0; adjustable: :data:`DG_ADJUSTABLE` (the attitude
+        rates are fixed). Sigmas, with ``s = accuracy_m``: position ``s`` (m); position rates
+        ``s / (T/2)`` (m/s, ``T`` the image duration: a drift that moves the image ends by
+        ``s``); roll/pitch bias ``s / D`` (rad, ``D`` slant range at the image centre); yaw
+        bias ``s / L`` (rad, ``L`` the ground distance from the nadir point to the farther end
+        of the centre row: a yaw about the satellite's vertical moves ground points by their
+        distance from nadir times the angle, up to 400 km for SPOT's off-nadir views);
+        attitude rates ``(roll/pitch sigma) / (T/2)`` (informational, not adjustable).
+
+    Raises
+    ------
+    ParameterSetError
+        ``accuracy_m`` is not a number > 0 (a ``ValueError``).
+    """
+    try:
+        sigma = float(accuracy_m)
+    except (TypeError, ValueError):
+        sigma = float("nan")
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise ParameterSetError(f"accuracy_m must be finite and > 0, got {accuracy_m!r}")
+    rows, cols = model.shape
+    free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
+    half_t = 0.5 * rows * model.line_times.line_period_s
+    centre = (0.5 * (rows - 1), 0.5 * (cols - 1))
+    g = free.backproject_ecef([centre[0]] * 3, [centre[1], 0.0, cols - 1.0], 0.0)
+    ground = np.stack([np.asarray(c) for c in g], axis=-1)  # (3, 3)
+    sat, _, _ = free.sensor_state(centre[0])
+    slant = float(np.linalg.norm(ground[0] - sat))
+    nadir = np.stack(coords.geodetic_to_ecef(*coords.ecef_to_geodetic(*sat)[:2], 0.0), axis=-1)
+    lever = float(np.max(np.linalg.norm(ground[1:] - nadir, axis=-1)))  # yaw's lever arm
+    angle = sigma / slant
+    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
+                      + [angle, angle, sigma / lever] + [angle / half_t] * 3)
+    adjustable = np.array([n in DG_ADJUSTABLE for n in PARAMETER_NAMES])
+    return ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS, sigmas, adjustable)
 
 
 # ==================================================================================== internals

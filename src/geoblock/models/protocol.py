@@ -76,6 +76,23 @@ class SensorModel(Protocol):
         """A new model with parameter values (P,)."""
         ...
 
+    @property
+    def parameter_sets(self) -> tuple[str, ...]:
+        """Names of the parameter presets :meth:`with_parameter_set` accepts, ``"default"``
+        among them; cheap and free of side effects (a class attribute will do)."""
+        ...
+
+    def with_parameter_set(self, name: str, **options: Any) -> Self:
+        """A copy whose ``parameters`` are the preset ``name`` (names, values, units, a-priori
+        sigmas, adjustable mask): how a block adjustment asks any model for ``"dg"``.
+
+        ``"default"`` is accepted by every model and means the parameters as they are.
+        Raises :class:`~geoblock.errors.ParameterSetError` for a name not in
+        :attr:`parameter_sets`, an option the set does not know, or a missing option the set
+        needs (the message names the model, the set and the known sets or options).
+        """
+        ...
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe state naming its model."""
         ...

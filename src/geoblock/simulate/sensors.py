@@ -402,7 +402,9 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
     -------
     SimulatedSensor
         ``true_model`` (parameters zero), ``onboard_model`` (parameters zero, erroneous
-        ephemeris and attitude) and the ``errors`` applied.
+        ephemeris and attitude, ``location_accuracy_m`` the spec's ``onboard_rmse_m`` when
+        > 0, so that its ``with_parameter_set("dg")`` needs no option) and the ``errors``
+        applied.
     """
     rng = np.random.default_rng(spec.seed)
     phases = rng.uniform(0.0, 2 * math.pi, 3)
@@ -446,6 +448,8 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
         scale_b * shape_bias.attitude_bias_rad, scale_d * shape_drift.attitude_drift_rad_s,
     )
     onboard = _with_errors(spec, nadir, roll, phases, errors)
+    if spec.onboard_rmse_m > 0:  # the on-board data's stated accuracy: the "dg" set's sigmas
+        onboard = onboard.replace(location_accuracy_m=spec.onboard_rmse_m)
     return SimulatedSensor(spec, true_model, onboard, errors, roll)
 
 

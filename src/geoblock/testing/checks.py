@@ -47,6 +47,7 @@ __all__ = [
     "check_no_mutation",
     "check_parameter_partials",
     "check_parameter_perturbation",
+    "check_parameter_sets",
     "check_partials",
     "check_pickle",
     "check_round_trip",
@@ -351,13 +352,18 @@ def check_metadata(model: Any) -> None:
         raise _error(check, model, "`height_range` is not (h_min, h_max) finite with h_min < h_max",
                      got=repr(hr), hint="metres above the WGS84 ellipsoid")
     params = _call(check, model, "parameters", lambda: model.parameters)
+    _check_parameter_set(check, model, params, "`parameters`")
+
+
+def _check_parameter_set(check: str, model: Any, params: Any, what: str) -> None:
+    """Raise a check failure unless ``params`` is a consistent ParameterSet."""
     try:
         names = tuple(params.names)
         values = np.asarray(params.values)
         sigmas = np.asarray(params.sigmas)
         adjustable = np.asarray(params.adjustable)
     except AttributeError as exc:
-        raise _error(check, model, f"`parameters` is not a ParameterSet: {exc}",
+        raise _error(check, model, f"{what} is not a ParameterSet: {exc}",
                      got=repr(params)) from exc
     p = len(names)
     problems = []
@@ -372,7 +378,7 @@ def check_metadata(model: Any) -> None:
     if adjustable.shape != (p,) or adjustable.dtype != bool:
         problems.append(f"adjustable must be (P,) bool, got {adjustable!r}")
     if problems:
-        raise _error(check, model, "`parameters` is inconsistent: " + "; ".join(problems),
+        raise _error(check, model, f"{what} is inconsistent: " + "; ".join(problems),
                      got=repr(params))
 
 
@@ -1023,6 +1029,186 @@ def check_with_parameters(model: Any, *, n: int = 3, seed: int = 0) -> None:
                      "(ParameterSet.with_values does)")
 
 
+_UNKNOWN_SET = "no-such-parameter-set"
+_UNKNOWN_OPTION = "no_such_option"
+
+
+def _same_parameters(a: Any, b: Any) -> bool:
+    """Whether two ParameterSets agree in names, units, values, sigmas, mask and covariance."""
+    for attr in ("names", "units", "values", "sigmas", "adjustable", "covariance"):
+        x, y = getattr(a, attr, None), getattr(b, attr, None)
+        if not np.array_equal(np.asarray(x, dtype=object), np.asarray(y, dtype=object)):
+            return False
+    return True
+
+
+def check_parameter_sets(
+    model: Any,
+    *,
+    parameter_set_options: Mapping[str, Mapping[str, Any]] | None = None,
+    tolerance_px: float = 1e-6,
+) -> dict[str, str]:
+    """Named parameter presets: ``parameter_sets`` and ``with_parameter_set(name, **options)``.
+
+    * ``parameter_sets`` is a tuple of unique names with ``"default"`` among them, the same
+      on every access;
+    * ``with_parameter_set("default")`` is == the model, with the same parameters;
+    * for every listed name, ``with_parameter_set(name, **parameter_set_options.get(name,
+      {}))`` returns a model of the same type and shape whose ``parameters`` is a consistent
+      ParameterSet, which projects and backprojects the image centre (middle of the height
+      range) consistently, whose ``with_parameter_set("default")`` is == itself and which
+      ``from_dict(to_dict())`` (through JSON text) gives back with the same parameters; the
+      model is not changed;
+    * an unknown name and an unknown option raise
+      :class:`~geoblock.errors.ParameterSetError`; the unknown name's message names it and
+      the known sets.
+
+    A set that raises ``ParameterSetError`` when called without options (one that needs an
+    option, such as ``"dg"``'s ``accuracy_m`` on a model that does not know its location
+    accuracy) is not checked: it is returned with the error's message. Give it options
+    through ``parameter_set_options`` to check it.
+
+    Parameters
+    ----------
+    model : SensorModel
+    parameter_set_options : mapping of str to mapping, optional
+        Options per set name, e.g. ``{"dg": {"accuracy_m": 10.0}}`` (names the model does not
+        list are ignored).
+    tolerance_px : float
+        Round-trip tolerance at the image centre, pixels.
+
+    Returns
+    -------
+    dict of str to str
+        The sets not checked, with the reason.
+
+    Raises
+    ------
+    AssertionError
+    """
+    from geoblock.errors import ParameterSetError
+
+    check = "check_parameter_sets"
+    options = dict(parameter_set_options or {})
+    before = _snapshot(model)
+    for member in ("parameter_sets", "with_parameter_set"):
+        if not hasattr(type(model), member):
+            raise _error(check, model, f"the model has no `{member}`",
+                         hint="the SensorModel protocol requires `parameter_sets` (the names of "
+                         "the parameter presets, at least ('default',)) and "
+                         "`with_parameter_set(name, **options)`; SensorModelBase provides both")
+    sets = _call(check, model, "parameter_sets", lambda: model.parameter_sets)
+    hint_sets = ("parameter_sets lists the presets' names (a tuple of str, 'default' first: "
+                 "SensorModelBase's default is ('default',))")
+    if (not isinstance(sets, tuple) or not all(isinstance(n, str) and n for n in sets)
+            or len(set(sets)) != len(sets) or "default" not in sets):
+        raise _error(check, model, "parameter_sets is not a tuple of unique names with "
+                     "'default' among them", got=repr(sets), hint=hint_sets)
+    if model.parameter_sets != sets:
+        raise _error(check, model, "parameter_sets changes between accesses",
+                     got=f"{sets!r} then {model.parameter_sets!r}", hint=hint_sets)
+    rows, cols = model.shape
+    centre = ((rows - 1) / 2.0, (cols - 1) / 2.0)
+    h_mid = 0.5 * (float(model.height_range[0]) + float(model.height_range[1]))
+    skipped: dict[str, str] = {}
+    for name in sets:
+        opts = dict(options.get(name, {}))
+        call = f"with_parameter_set({name!r}" + "".join(
+            f", {k}={v!r}" for k, v in opts.items()) + ")"
+        try:
+            preset = model.with_parameter_set(name, **opts)
+        except ParameterSetError as exc:
+            if opts or name == "default":
+                raise _error(check, model, f"{call} raised ParameterSetError: {exc}",
+                             hint="every name in parameter_sets must be accepted (with the "
+                             "options given); 'default' needs none") from exc
+            skipped[name] = str(exc)
+            continue
+        except Exception as exc:
+            raise _error(check, model, f"{call} raised {type(exc).__name__}: {exc}",
+                         hint="a set that cannot be built raises ParameterSetError saying "
+                         "why (the original exception is chained)") from exc
+        if type(preset) is not type(model):
+            raise _error(check, model, f"{call} returns another type",
+                         expected=type(model).__qualname__, got=type(preset).__qualname__)
+        if tuple(preset.shape) != tuple(model.shape):
+            raise _error(check, model, f"{call} changes the shape",
+                         expected=repr(model.shape), got=repr(preset.shape))
+        _check_parameter_set(check, model, preset.parameters, f"{call}.parameters")
+        if name == "default" and not (
+            _equal(preset, model) and _same_parameters(preset.parameters, model.parameters)
+        ):
+            raise _error(check, model, f"{call} is not the model as it is",
+                         expected=repr(model.parameters), got=repr(preset.parameters),
+                         hint="'default' means the parameters as the model has them now "
+                         "(SensorModelBase returns self)")
+        (g_lon, g_lat, g_h), st_b = _call(check, model, f"{call}.backproject_with_status",
+                                          preset.backproject_with_status,
+                                          centre[0], centre[1], h_mid)
+        (row, col), st_p = _call(check, model, f"{call}.project_with_status",
+                                 preset.project_with_status, g_lon, g_lat, h_mid)
+        miss = math.hypot(float(row) - centre[0], float(col) - centre[1])
+        if int(st_b) != _CONVERGED or int(st_p) != _CONVERGED or not miss <= tolerance_px:
+            raise _error(check, model, f"{call} does not project the image centre",
+                         at=_at_image(centre[0], centre[1], h_mid),
+                         expected=f"row={_g(centre[0])}, col={_g(centre[1])} (CONVERGED)",
+                         got=f"row={_g(row)}, col={_g(col)} (backproject "
+                         f"{_status_name(st_b)}, project {_status_name(st_p)})",
+                         hint="a preset chooses which parameters an adjustment estimates; the "
+                         "model it returns must still work")
+        back = _call(check, model, f"{call}.with_parameter_set('default')",
+                     preset.with_parameter_set, "default")
+        if not _equal(back, preset):
+            raise _error(check, model, f"{call}.with_parameter_set('default') is not == "
+                         "itself", hint="'default' means the parameters as they are")
+        if name != "default":  # the model's own round trip is check_serialization's
+            text = _call(check, model, f"{call}.to_dict()",
+                         lambda p=preset: json.dumps(p.to_dict(), allow_nan=False))
+            again = _call(check, model, f"from_dict({call}.to_dict())",
+                          type(preset).from_dict, json.loads(text))
+            if not (_equal(again, preset)
+                    and _same_parameters(again.parameters, preset.parameters)):
+                raise _error(check, model, f"from_dict({call}.to_dict()) does not give the "
+                             "preset back", expected=repr(preset.parameters),
+                             got=repr(again.parameters),
+                             hint="to_dict() must record the preset's parameters (names, "
+                             "values, sigmas, adjustable mask) and from_dict() restore them")
+        if _snapshot(model) != before:
+            raise _error(check, model, f"{call} mutates the model",
+                         got=_diff_keys(before, _snapshot(model)),
+                         hint="models are immutable: build a new one")
+    try:
+        model.with_parameter_set(_UNKNOWN_SET)
+    except ParameterSetError as exc:
+        missing = [n for n in (_UNKNOWN_SET, *sets) if n not in str(exc)]
+        if missing:
+            raise _error(check, model, f"the ParameterSetError for an unknown set does not name "
+                         f"{missing}", got=str(exc), hint="name the set asked for and the "
+                         "known ones (SensorModelBase does)") from exc
+    except Exception as exc:
+        raise _error(check, model, f"with_parameter_set({_UNKNOWN_SET!r}) raised "
+                     f"{type(exc).__name__}, not ParameterSetError: {exc}",
+                     hint="raise geoblock.errors.ParameterSetError") from exc
+    else:
+        raise _error(check, model, f"with_parameter_set({_UNKNOWN_SET!r}) does not raise",
+                     hint="refuse names not in parameter_sets with ParameterSetError")
+    try:
+        model.with_parameter_set("default", **{_UNKNOWN_OPTION: 1.0})
+    except ParameterSetError as exc:
+        if _UNKNOWN_OPTION not in str(exc):
+            raise _error(check, model, "the ParameterSetError for an unknown option does not "
+                         "name it", got=str(exc)) from exc
+    except Exception as exc:
+        raise _error(check, model, f"with_parameter_set('default', {_UNKNOWN_OPTION}=1.0) "
+                     f"raised {type(exc).__name__}, not ParameterSetError: {exc}",
+                     hint="raise geoblock.errors.ParameterSetError") from exc
+    else:
+        raise _error(check, model, f"with_parameter_set('default', {_UNKNOWN_OPTION}=1.0) "
+                     "does not raise", hint="refuse unknown options with ParameterSetError "
+                     "naming them (SensorModelBase._parameter_set_request does)")
+    return skipped
+
+
 def _snapshot(model: Any) -> str:
     return json.dumps(model.to_dict(), sort_keys=True, default=repr)
 
@@ -1474,7 +1660,7 @@ def check_footprint(model: Any, *, tolerance_px: float = 1e-6) -> None:
 
 # ================================================================================ all together
 #: Every check, in the order :func:`check_sensor_model` runs them.
-CHECKS: tuple[Callable[..., None], ...] = (
+CHECKS: tuple[Callable[..., object], ...] = (
     check_metadata,
     check_shapes,
     check_round_trip,
@@ -1484,6 +1670,7 @@ CHECKS: tuple[Callable[..., None], ...] = (
     check_parameter_partials,
     check_parameter_perturbation,
     check_with_parameters,
+    check_parameter_sets,
     check_no_mutation,
     check_serialization,
     check_pickle,
@@ -1491,7 +1678,7 @@ CHECKS: tuple[Callable[..., None], ...] = (
 )
 
 
-def _options_for(func: Callable[..., None], options: Mapping[str, Any]) -> dict[str, Any]:
+def _options_for(func: Callable[..., object], options: Mapping[str, Any]) -> dict[str, Any]:
     """The subset of ``check_sensor_model`` options a check accepts, renamed."""
     accepted = inspect.signature(func).parameters
     renamed = dict(options)
@@ -1510,6 +1697,7 @@ def check_sensor_model(
     tolerance_px: float = 1e-6,
     partials_rtol: float = 1e-4,
     perturbation_rtol: float = 0.1,
+    parameter_set_options: Mapping[str, Mapping[str, Any]] | None = None,
     skip: Sequence[str] = (),
 ) -> None:
     """Run every conformance check on a sensor model.
@@ -1520,8 +1708,8 @@ def check_sensor_model(
     :func:`check_round_trip`, :func:`check_footprint`, :func:`check_nan_isolation`,
     :func:`check_ground_partials`, :func:`check_parameter_partials`,
     :func:`check_parameter_perturbation`, :func:`check_with_parameters`,
-    :func:`check_no_mutation`, :func:`check_serialization`, :func:`check_pickle` and
-    :func:`check_dask_token`.
+    :func:`check_parameter_sets`, :func:`check_no_mutation`, :func:`check_serialization`,
+    :func:`check_pickle` and :func:`check_dask_token`.
 
     Parameters
     ----------
@@ -1538,6 +1726,9 @@ def check_sensor_model(
         Relative tolerance of analytic vs numeric partials.
     perturbation_rtol : float
         Relative tolerance of the motion predicted by the parameter partials.
+    parameter_set_options : mapping of str to mapping, optional
+        Options of the parameter sets that need some (``{"dg": {"accuracy_m": 10.0}}``);
+        :func:`check_parameter_sets` leaves out a set that needs options not given here.
     skip : sequence of str
         Names of checks not to run (e.g. ``["check_dask_token"]``).
 
@@ -1552,7 +1743,8 @@ def check_sensor_model(
     >>> check_sensor_model(AffineCamera.example(), n=3)
     """
     options = {"n": n, "seed": seed, "tolerance_px": tolerance_px,
-               "partials_rtol": partials_rtol, "perturbation_rtol": perturbation_rtol}
+               "partials_rtol": partials_rtol, "perturbation_rtol": perturbation_rtol,
+               "parameter_set_options": parameter_set_options}
     unknown = set(skip) - {c.__name__ for c in CHECKS}
     if unknown:
         raise ValueError(f"check_sensor_model: unknown checks {sorted(unknown)}")

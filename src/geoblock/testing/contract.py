@@ -31,6 +31,11 @@ class SensorModelContract:
         the checks that accept them: ``n`` (grid points per image side), ``seed``,
         ``tolerance_px``, ``partials_rtol``, ``perturbation_rtol``. Loosen them only with a
         reason (a model known to round-trip to 1e-5 px only, say).
+    parameter_set_options : mapping
+        Options of the model's parameter sets that need some, by set name, for
+        ``test_parameter_sets`` (e.g. ``{"dg": {"accuracy_m": 10.0}}``). A set that needs
+        options not given here is left out, and the test is skipped saying which sets were
+        checked and which were not.
 
     Examples
     --------
@@ -55,6 +60,7 @@ class SensorModelContract:
     """
 
     check_options: ClassVar[Mapping[str, Any]] = {}
+    parameter_set_options: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
 
     @pytest.fixture
     def model(self) -> Any:
@@ -102,6 +108,17 @@ class SensorModelContract:
     def test_with_parameters(self, model: Any) -> None:
         """with_parameters keeps state, sets values and never mutates."""
         self._run(checks.check_with_parameters, model)
+
+    def test_parameter_sets(self, model: Any) -> None:
+        """Every named parameter preset builds a working model; unknown names are refused."""
+        options = {**self.check_options, "parameter_set_options": self.parameter_set_options}
+        skipped = checks.check_parameter_sets(
+            model, **checks._options_for(checks.check_parameter_sets, options))
+        if skipped:
+            checked = [n for n in model.parameter_sets if n not in skipped]
+            reasons = "; ".join(f"{n!r}: {why}" for n, why in skipped.items())
+            pytest.skip(f"parameter sets checked: {checked}; not checked, as they need options "
+                        f"(give them in {type(self).__name__}.parameter_set_options): {reasons}")
 
     def test_no_mutation(self, model: Any) -> None:
         """No method changes the model or its inputs."""

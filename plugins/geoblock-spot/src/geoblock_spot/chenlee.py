@@ -32,7 +32,9 @@ The model, exactly as published (Chen & Lee 1993, PE&RS 59(5), eqs. 1-7; Teo et 
 Angles are radians in the model (Table 1 of the paper is in degrees). Partials with respect to
 the ground and to all 19 parameters are analytic (implicit differentiation of ``f(t) = 0``).
 
-Two parameter sets:
+Two parameterisations, both reached through the sensor-model protocol's
+``with_parameter_set(name, **options)`` (``parameter_sets`` is ``("default", "coefficients",
+"mba")``, ``"default"`` the parameters as they are):
 
 * ``"coefficients"``: the 19 values themselves (``x0 ... kappa2, sy``), free (no a-priori
   sigma): the model as published, e.g. Table 1;
@@ -54,7 +56,7 @@ import numpy as np
 
 from geoblock import coords
 from geoblock._array import broadcast_float64
-from geoblock.errors import ModelFormatError, SerializationError
+from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models import SensorModelBase
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import ArrayLike, Float64Array, Status
@@ -332,6 +334,10 @@ class ChenLeeModel(SensorModelBase):
     sigmas, adjustable, covariance : optional
         A-priori sigmas (default: free), adjustable mask and covariance of the parameters
         (see :class:`~geoblock.models.parameters.ParameterSet`).
+    location_accuracy_m : float, optional
+        The product's stated location accuracy (1 sigma, metres, > 0, e.g.
+        :data:`SPOT_LOCATION_ACCURACY_M`): ``with_parameter_set("mba")`` derives its sigmas
+        from it when given no accuracy; None (default) when unknown.
 
     Notes
     -----
@@ -344,6 +350,7 @@ class ChenLeeModel(SensorModelBase):
 
     name: ClassVar[str] = "spot-chenlee"
     schema_version: ClassVar[int] = 1
+    parameter_sets: ClassVar[tuple[str, ...]] = ("default", *PARAMETER_SETS)
 
     #: Newton on the sampling time stops when |dt| is below this, seconds (paper: 1e-6 s).
     time_tolerance_s: ClassVar[float] = 1e-10
@@ -372,6 +379,7 @@ class ChenLeeModel(SensorModelBase):
         sigmas: ArrayLike | None = None,
         adjustable: ArrayLike | None = None,
         covariance: ArrayLike | None = None,
+        location_accuracy_m: float | None = None,
     ) -> None:
         nominal = np.array(coefficients, dtype=np.float64)
         if nominal.shape != (19,) or not np.all(np.isfinite(nominal)):
@@ -394,6 +402,15 @@ class ChenLeeModel(SensorModelBase):
         if not (math.isfinite(h0) and math.isfinite(h1) and h0 < h1):
             raise ModelFormatError(
                 f"ChenLeeModel: height_range must be finite (min, max), got {height_range!r}")
+        if location_accuracy_m is not None:
+            try:
+                location_accuracy_m = float(location_accuracy_m)
+            except (TypeError, ValueError):
+                location_accuracy_m = math.nan
+            if not (math.isfinite(location_accuracy_m) and location_accuracy_m > 0):
+                raise ModelFormatError(
+                    "ChenLeeModel: location_accuracy_m must be finite and > 0 (or None), got "
+                    f"{location_accuracy_m!r}")
         if parameter_set not in PARAMETER_SETS:
             raise ModelFormatError(
                 f"ChenLeeModel: parameter_set must be one of {PARAMETER_SETS}, "
@@ -424,6 +441,7 @@ class ChenLeeModel(SensorModelBase):
         self._height_range = (h0, h1)
         self._set = parameter_set
         self._parameters = params
+        self._location_accuracy_m = location_accuracy_m
         self._orbit = effective[:9].reshape(3, 3)  # rows X, Y, Z; columns t^0, t^1, t^2
         self._angles = effective[9:18].reshape(3, 3)  # rows omega, phi, kappa
         self._sy = float(effective[18])
@@ -463,8 +481,13 @@ class ChenLeeModel(SensorModelBase):
 
     @property
     def parameter_set(self) -> str:
-        """``"coefficients"`` or ``"mba"``."""
+        """``"coefficients"`` or ``"mba"``: the parameterisation the model has."""
         return self._set
+
+    @property
+    def location_accuracy_m(self) -> float | None:
+        """The product's stated location accuracy (1 sigma, metres), or None if unknown."""
+        return self._location_accuracy_m
 
     @property
     def coefficients(self) -> Float64Array:
@@ -504,7 +527,8 @@ class ChenLeeModel(SensorModelBase):
     # ------------------------------------------------------------------ parameter sets
     def _kwargs(self) -> dict[str, Any]:
         return {"shape": self._shape, "interior": self._interior,
-                "height_range": self._height_range}
+                "height_range": self._height_range,
+                "location_accuracy_m": self._location_accuracy_m}
 
     def with_parameters(self, values: ArrayLike) -> Self:
         new = self._parameters.with_values(values)
@@ -557,28 +581,64 @@ class ChenLeeModel(SensorModelBase):
         ])
         return out
 
-    def with_parameter_set(
-        self,
-        parameter_set: str,
-        *,
-        location_accuracy_m: float | None = None,
-        sigmas: ArrayLike | None = None,
-    ) -> Self:
-        """The same geometry with another parameterisation.
+    def with_parameter_set(self, name: str, **options: Any) -> Self:
+        """The same geometry with another parameterisation (the sensor-model protocol's
+        parameter presets, :attr:`parameter_sets`).
 
-        ``"coefficients"``: the effective coefficients become the (free, unless ``sigmas``)
-        parameters. ``"mba"``: the effective coefficients become the nominal values and the
-        parameters are zero corrections, with sigmas from ``location_accuracy_m`` (see
-        :meth:`mba_sigmas`) or ``sigmas``.
+        Parameters
+        ----------
+        name : {"default", "coefficients", "mba"}
+            * ``"default"``: the parameters as they are (returns ``self``; no options);
+            * ``"coefficients"``: the effective coefficients become the parameters, free
+              unless ``sigmas`` or an accuracy is given;
+            * ``"mba"``: the effective coefficients become the nominal values and the
+              parameters are zero corrections, with a-priori sigmas from the accuracy (see
+              :meth:`mba_sigmas`) or ``sigmas``; without either, from
+              :attr:`location_accuracy_m`.
+        **options
+            ``accuracy_m`` (float): the location accuracy (1 sigma, metres) the sigmas derive
+            from (:meth:`mba_sigmas`), ``location_accuracy_m`` an alias; or ``sigmas``
+            (array_like, (19,)): explicit a-priori sigmas instead.
+
+        Returns
+        -------
+        ChenLeeModel
+            Projecting as ``self`` does (corrections are folded into the coefficients).
+
+        Raises
+        ------
+        ParameterSetError
+            An unknown name or option, an accuracy and ``sigmas`` both given, or ``"mba"``
+            with no accuracy to derive its sigmas from.
         """
-        if location_accuracy_m is not None:
-            if sigmas is not None:
-                raise ModelFormatError("give location_accuracy_m or sigmas, not both")
-            sigmas = self.mba_sigmas(location_accuracy_m)
-        if parameter_set == "mba":
-            return type(self)(self._coef, self._frame, **self._kwargs(), parameter_set="mba",
-                              sigmas=sigmas)
-        return type(self)(self._coef, self._frame, **self._kwargs(), parameter_set=parameter_set,
+        if name not in PARAMETER_SETS:
+            return super().with_parameter_set(name, **options)
+        self._parameter_set_request(name, options, ("accuracy_m", "location_accuracy_m", "sigmas"))
+        accuracy = options.get("accuracy_m")
+        alias = options.get("location_accuracy_m")
+        if accuracy is not None and alias is not None:
+            raise ParameterSetError(
+                f"ChenLeeModel: give accuracy_m or location_accuracy_m (an alias), not both "
+                f"(parameter set {name!r})")
+        accuracy = alias if accuracy is None else accuracy
+        sigmas = options.get("sigmas")
+        if accuracy is not None and sigmas is not None:
+            raise ParameterSetError(
+                f"ChenLeeModel: give accuracy_m or sigmas, not both (parameter set {name!r})")
+        if name == "mba" and accuracy is None and sigmas is None:
+            accuracy = self._location_accuracy_m
+            if accuracy is None:
+                raise ParameterSetError(
+                    "ChenLeeModel 'spot-chenlee': parameter set 'mba' derives its a-priori "
+                    "sigmas from the product's location accuracy, which this model does not "
+                    "know (location_accuracy_m is None): pass accuracy_m= (1 sigma, metres, "
+                    "e.g. SPOT_LOCATION_ACCURACY_M) or sigmas=")
+        if accuracy is not None:
+            try:
+                sigmas = self.mba_sigmas(accuracy)
+            except (ModelFormatError, TypeError, ValueError) as exc:
+                raise ParameterSetError(f"ChenLeeModel, parameter set {name!r}: {exc}") from exc
+        return type(self)(self._coef, self._frame, **self._kwargs(), parameter_set=name,
                           sigmas=sigmas)
 
     def mba(self, location_accuracy_m: float) -> Self:
@@ -588,7 +648,7 @@ class ChenLeeModel(SensorModelBase):
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "model": self.name,
             "schema_version": self.schema_version,
             "shape": list(self._shape),
@@ -599,6 +659,9 @@ class ChenLeeModel(SensorModelBase):
             "parameter_set": self._set,
             "parameters": self._parameters.to_dict(),
         }
+        if self._location_accuracy_m is not None:  # absent from older JSON: stays optional
+            out["location_accuracy_m"] = self._location_accuracy_m
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
@@ -622,6 +685,7 @@ class ChenLeeModel(SensorModelBase):
                 sigmas=params.sigmas,
                 adjustable=params.adjustable,
                 covariance=params.covariance,
+                location_accuracy_m=data.get("location_accuracy_m"),
             )
         except KeyError as exc:
             raise SerializationError(f"{cls.name} model dictionary misses {exc}") from None

@@ -84,6 +84,7 @@ from pathlib import Path
 import numpy as np
 
 from geoblock import coords
+from geoblock.errors import ParameterSetError
 from geoblock.models.linescan import (
     Attitude,
     Ephemeris,
@@ -624,12 +625,14 @@ def dimap2_model(
     source : Dimap2 or path
         Parsed metadata or a ``DIM_*.XML`` / ``PHRDIMAP_*.XML`` file.
     parameters : {"linescan", "dg"} or ParameterSet
+        A parameter set of the model (:meth:`LinescanModel.with_parameter_set`):
         ``"linescan"`` (default): the linescan model's twelve free parameters; ``"dg"``:
-        :func:`geoblock_spot.los.dg_parameters` with sigmas from ``accuracy_m``; or a
-        ``ParameterSet`` with linescan names.
+        Teo et al.'s DG set (:func:`geoblock.models.linescan.dg_parameters`) with sigmas from
+        ``accuracy_m``; or a ``ParameterSet`` with linescan names.
     accuracy_m : float, optional
         The product's location accuracy (1 sigma, metres), required for ``"dg"`` (DIMAP v2
-        states none in metres).
+        states none in metres); stored as the model's ``location_accuracy_m``, so that a later
+        ``with_parameter_set("dg")`` needs no option.
     attitude_step_s : float
         Sampling step of a polynomial attitude, seconds (slerp between samples; 1/64 s
         reproduces the polynomial to well below a microradian).
@@ -690,7 +693,8 @@ def dimap2_model(
                 f"{t_last:.3f} s)")
 
     model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
-                          epoch=meta.epoch, height_range=height_range)
+                          epoch=meta.epoch, height_range=height_range,
+                          location_accuracy_m=accuracy_m)
     if meta.centre is not None:
         _check_centre(meta, model)
     if isinstance(parameters, ParameterSet):
@@ -699,11 +703,9 @@ def dimap2_model(
         return model
     if parameters == "dg":
         if accuracy_m is None:
-            raise ValueError("parameters='dg' needs accuracy_m (the product's location "
-                             "accuracy, 1 sigma, metres)")
-        from geoblock_spot.los import dg_parameters
-
-        return model.replace(parameters=dg_parameters(model, accuracy_m))
+            raise ParameterSetError("parameters='dg' needs accuracy_m (the product's location "
+                                    "accuracy, 1 sigma, metres)")
+        return model.with_parameter_set("dg")
     raise ValueError(f"parameters must be 'linescan', 'dg' or a ParameterSet, got "
                      f"{parameters!r}")
 

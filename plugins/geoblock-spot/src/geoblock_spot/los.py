@@ -36,16 +36,14 @@ a metre at the DIMAP sample spacing of 30-60 s).
 
 DG parameter set
 ----------------
-:func:`dg_parameters`: Teo et al.'s direct-georeferencing correction, a first-degree
+The model's ``"dg"`` parameter set (``model.with_parameter_set("dg")``, the default of
+:func:`spot_dimap_model`) is Teo et al.'s direct-georeferencing correction, a first-degree
 polynomial orbital correction ``dP(t)`` (``dp_along/across/radial`` and their ``_rate``) plus
 the three attitude biases (``roll/pitch/yaw_bias``); the attitude rates stay in the set, fixed
-at 0. A-priori sigmas come from the product's location accuracy ``sigma`` (m,
-:attr:`SpotDimap.location_accuracy_m`): position biases ``sigma``; position rates
-``sigma / (T/2)`` with ``T`` the image duration (a drift that moves the image ends by
-``sigma``); roll and pitch biases ``sigma / D`` with ``D`` the slant range at the scene centre;
-yaw bias ``sigma / L`` with ``L`` the ground distance from the nadir point to the farther end
-of the centre row (a yaw rotation about the satellite's vertical moves ground points by their
-distance from nadir times the angle, which for SPOT's off-nadir views reaches 400 km).
+at 0. Its a-priori sigmas come from the product's location accuracy
+(:attr:`SpotDimap.location_accuracy_m`, stored as the model's ``location_accuracy_m``). It is
+generic linescan geometry and lives in the core, :func:`geoblock.models.linescan.dg_parameters`;
+:func:`dg_parameters` and :data:`DG_ADJUSTABLE` here are re-exports kept for compatibility.
 """
 
 from __future__ import annotations
@@ -58,13 +56,13 @@ import numpy as np
 
 from geoblock import coords
 from geoblock.models.linescan import (
-    PARAMETER_NAMES,
-    PARAMETER_UNITS,
+    DG_ADJUSTABLE,
     Attitude,
     Ephemeris,
     LinescanModel,
     LineTimes,
     LookDirections,
+    dg_parameters,
     matrix_to_quaternion,
     orbital_frame,
 )
@@ -89,13 +87,6 @@ __all__ = [
 
 AXIS_PERMUTATION = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 """``A``: SPOT orbital/navigation axes (right, forward, up) -> geoblock's (forward, right, down)."""
-
-#: the parameters the DG set lets an adjustment change
-DG_ADJUSTABLE = (
-    "dp_along", "dp_across", "dp_radial",
-    "dp_along_rate", "dp_across_rate", "dp_radial_rate",
-    "roll_bias", "pitch_bias", "yaw_bias",
-)
 
 
 def handbook_rotation(yaw, pitch, roll) -> np.ndarray:
@@ -147,8 +138,10 @@ def spot_dimap_model(
     source : SpotDimap or path
         Parsed metadata, a ``METADATA.DIM`` file or a product directory.
     parameters : {"dg", "linescan"} or ParameterSet
-        ``"dg"`` (default): :func:`dg_parameters`; ``"linescan"``: the linescan model's twelve
-        free parameters (infinite sigmas); or a ``ParameterSet`` with linescan names.
+        A parameter set of the model (:meth:`LinescanModel.with_parameter_set`): ``"dg"``
+        (default): Teo et al.'s DG set (:func:`dg_parameters`) with sigmas from the product's
+        location accuracy; ``"linescan"``: the linescan model's twelve free parameters
+        (infinite sigmas); or a ``ParameterSet`` with linescan names.
     use_attitude : bool
         ``False`` sets yaw, pitch and roll to 0 (the SPOT 1-4 products' own corner
         coordinates are reproduced best that way, to about 1 m: they appear to be computed
@@ -159,7 +152,9 @@ def spot_dimap_model(
     Returns
     -------
     LinescanModel
-        Shape ``(NROWS, NCOLS)``, attitude in the orbital frame, epoch the first ephemeris time.
+        Shape ``(NROWS, NCOLS)``, attitude in the orbital frame, epoch the first ephemeris time,
+        ``location_accuracy_m`` the product's (:attr:`SpotDimap.location_accuracy_m`), so that
+        ``with_parameter_set("dg")`` needs no option.
 
     Raises
     ------
@@ -206,55 +201,13 @@ def spot_dimap_model(
             )
 
     model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
-                          epoch=dimap.epoch, height_range=height_range)
+                          epoch=dimap.epoch, height_range=height_range,
+                          location_accuracy_m=dimap.location_accuracy_m)
     if isinstance(parameters, ParameterSet):
         return model.replace(parameters=parameters)
-    if parameters == "linescan":
-        return model
-    if parameters == "dg":
-        return model.replace(parameters=dg_parameters(model, dimap.location_accuracy_m))
+    if parameters in ("dg", "linescan"):
+        return model.with_parameter_set(parameters)
     raise ValueError(f"parameters must be 'dg', 'linescan' or a ParameterSet, got {parameters!r}")
-
-
-def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
-    """Teo et al.'s DG parameter set for a linescan model, sigmas from a location accuracy.
-
-    Parameters
-    ----------
-    model : LinescanModel
-        The model whose geometry scales the sigmas (its parameter values are not used).
-    accuracy_m : float
-        The product's location accuracy, metres (1 sigma).
-
-    Returns
-    -------
-    ParameterSet
-        The twelve linescan names, values 0; adjustable: :data:`DG_ADJUSTABLE` (the attitude
-        rates are fixed). Sigmas: position ``accuracy_m`` (m); position rates
-        ``accuracy_m / (T/2)`` (m/s, ``T`` the image duration); roll/pitch bias
-        ``accuracy_m / D`` (rad, ``D`` slant range at the image centre); yaw bias
-        ``accuracy_m / L`` (rad, ``L`` the ground distance from nadir to the farther end of
-        the centre row); attitude
-        rates ``(roll/pitch sigma) / (T/2)`` (informational, not adjustable).
-    """
-    sigma = float(accuracy_m)
-    if not sigma > 0:
-        raise ValueError(f"accuracy_m must be > 0, got {accuracy_m!r}")
-    rows, cols = model.shape
-    free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
-    half_t = 0.5 * rows * model.line_times.line_period_s
-    centre = (0.5 * (rows - 1), 0.5 * (cols - 1))
-    g = free.backproject_ecef([centre[0]] * 3, [centre[1], 0.0, cols - 1.0], 0.0)
-    ground = np.stack([np.asarray(c) for c in g], axis=-1)  # (3, 3)
-    sat, _, _ = free.sensor_state(centre[0])
-    slant = float(np.linalg.norm(ground[0] - sat))
-    nadir = np.stack(coords.geodetic_to_ecef(*coords.ecef_to_geodetic(*sat)[:2], 0.0), axis=-1)
-    lever = float(np.max(np.linalg.norm(ground[1:] - nadir, axis=-1)))  # yaw's lever arm
-    angle = sigma / slant
-    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
-                      + [angle, angle, sigma / lever] + [angle / half_t] * 3)
-    adjustable = np.array([n in DG_ADJUSTABLE for n in PARAMETER_NAMES])
-    return ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS, sigmas, adjustable)
 
 
 @dataclass(frozen=True, eq=False)
