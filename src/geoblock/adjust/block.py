@@ -83,6 +83,9 @@ TP_PRIORS = ("floating", "fixed")
 #: GCP sigmas below this (metres) are raised to it: a sigma of 0 means "error-free" and
 #: would give an infinite weight
 MIN_GROUND_SIGMA_M = 1e-3
+#: sigma (metres) of the floating TP pseudo-observations after the first iteration: they only
+#: keep a point regular where nothing else determines it (parallel rays without a DEM)
+FLOATING_TP_SIGMA_M = 1e4
 #: sigma (metres) holding a TP's height on the DEM surface in ``dem_control="iterate"``
 ITERATE_HOLD_SIGMA_M = 1e-3
 
@@ -107,6 +110,9 @@ class Block:
         of the TPs and the initial TP positions.
     dem_sigma_m : float
         Standard deviation of the DEM's heights, metres (default 5 m).
+    sigmas : mapping of str to mapping of str to float, optional
+        Per image, a-priori sigmas overriding the model's for named parameters (``inf``: free;
+        0: held fixed), in each parameter's unit.
 
     Raises
     ------
@@ -120,11 +126,25 @@ class Block:
     ground: GroundPoints | None = None
     dem: Any = None
     dem_sigma_m: float = 5.0
+    sigmas: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         models = dict(self.models)
         if not models:
             raise ObservationError("block: no image")
+        for image, table in self.sigmas.items():
+            if image not in models:
+                raise ObservationError(f"block: sigmas given for image {image!r}, which is not "
+                                       f"in the block (images: {list(models)})")
+            names = models[image].parameters.names
+            for name, value in table.items():
+                if name not in names:
+                    raise ObservationError(
+                        f"block: sigmas of image {image!r}: model {models[image].name!r} has no "
+                        f"parameter {name!r}; its parameters are {list(names)}")
+                if not (isinstance(value, int | float) and value >= 0):
+                    raise ObservationError(f"block: sigmas of image {image!r}: {name} must be a "
+                                           f"number >= 0 (inf: free), got {value!r}")
         unknown = ~np.isin(self.measurements.image, list(models))
         if unknown.any():
             pairs = sorted({f"{p} in {i!r}" for p, i in zip(
@@ -366,6 +386,24 @@ def _with_params(models: list[SensorModel], adj: list[np.ndarray], gidx: np.ndar
     return out
 
 
+def _prior(model: SensorModel, overrides: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Adjustable mask (P,) and a-priori covariance (P, P) of a model's parameters, with
+    sigma overrides by name (0: fixed; inf: free)."""
+    params = model.parameters
+    mask = np.array(params.adjustable, dtype=bool)
+    cov = np.array(params.prior_covariance, dtype=np.float64)
+    for name, sigma in overrides.items():
+        k = params.index(name)
+        if sigma == 0:
+            mask[k] = False
+            continue
+        cov[k, :] = 0.0
+        cov[:, k] = 0.0
+        cov[k, k] = float(sigma) ** 2
+        mask[k] = True
+    return mask, cov
+
+
 def _sqrt_psd_inv(cov: np.ndarray) -> np.ndarray:
     """Weight matrix of a covariance where finite; zero rows/columns for infinite sigmas."""
     finite = np.isfinite(np.diag(cov))
@@ -409,11 +447,14 @@ class _Engine:
                  tp_prior: str, notes: list[str]) -> None:
         self.block = block
         self.tp_prior = tp_prior
+        self.tp_sigma_m_first = FLOATING_TP_SIGMA_M
         self.dem_control = dem_control if block.dem is not None else "none"
         self.notes = notes
         meas = block.measurements
         models = [block.models[i] for i in ids]
-        adj = [np.flatnonzero(m.parameters.adjustable) for m in models]
+        priors = [_prior(m, block.sigmas.get(i, {})) for i, m in zip(ids, models, strict=True)]
+        adj = [np.flatnonzero(mask) for mask, _ in priors]
+        self.priors = priors
         sizes = np.array([a.size for a in adj])
         kmax = max(int(sizes.max()), 1)
         offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
@@ -422,9 +463,9 @@ class _Engine:
             gidx[i, :s] = o + np.arange(s)
         k = int(sizes.sum())
         prior_w = np.zeros((k, k))
-        for i, m in enumerate(models):
+        for i in range(len(models)):
             sl = slice(offsets[i], offsets[i] + sizes[i])
-            prior_w[sl, sl] = _sqrt_psd_inv(m.parameters.prior_covariance[np.ix_(adj[i], adj[i])])
+            prior_w[sl, sl] = _sqrt_psd_inv(priors[i][1][np.ix_(adj[i], adj[i])])
         prior_x = _params_vector(models, adj, gidx, k)
 
         kinds = ("gcp", "tp") if use_tps else ("gcp",)
@@ -435,7 +476,7 @@ class _Engine:
         n_images = np.bincount(point_of, minlength=p_id.size)
         p_kind = np.empty(p_id.size, dtype="<U4")
         p_kind[point_of] = meas.kind[sel]
-        self.setup_checks(ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images)
+        self.setup_checks(ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images, priors)
 
         ground = block.ground
         gk = lookup(ground.id, p_id) if ground is not None else np.full(p_id.size, -1)
@@ -460,6 +501,7 @@ class _Engine:
             else:
                 tp_sig = np.full(3, float(tp_sigma_m))
             sig[is_tp] = tp_sig
+            self.tp_sigma_m_first = float(np.max(tp_sig))
         frame = coords.LocalFrame.centred_on(lon0, lat0, h0)
         x0 = np.stack(frame.from_geodetic(lon0, lat0, h0), axis=-1)
         g_weight = np.linalg.inv(_enu_cov_to_local(frame, lon0, lat0, sig))
@@ -476,7 +518,8 @@ class _Engine:
         self.weight = np.ones(sel.size)  # robust weight factors
 
     # ------------------------------------------------------------------ checks
-    def setup_checks(self, ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images) -> None:
+    def setup_checks(self, ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images,
+                     priors) -> None:
         counts = np.bincount(lookup(np.array(ids), meas.image[sel]), minlength=len(ids))
         empty = [i for i, c, s in zip(ids, counts, sizes, strict=True) if c == 0 and s > 0]
         if empty:
@@ -489,7 +532,7 @@ class _Engine:
                 f"block: tie point(s) {_names(p_id[single])} are measured in one image only; "
                 "a TP must be measured in two images or more (remove them or mark them ictp)")
         for i, image in enumerate(ids):
-            prior = models[i].parameters.prior_covariance[np.ix_(adj[i], adj[i])]
+            prior = priors[i][1][np.ix_(adj[i], adj[i])]
             free = ~np.isfinite(np.diag(prior))
             n_obs = 2 * int(counts[i])
             if int(free.sum()) > n_obs:
@@ -720,8 +763,12 @@ class _Engine:
             rel = (ev["cost"] - ev_new["cost"]) / max(ev["cost"], 1e-300)
             x, pts, ev = x_new, pts_new, ev_new
             if self.tp_prior == "floating":
+                # re-centred on the estimate, and released after the first step: a damping
+                # of the first step from the on-board positions, never a pull on the solution
                 tp = s.p_kind == "tp"
                 s.g_center[tp] = pts[tp]
+                if it == 1:
+                    s.g_weight[tp] *= (self.tp_sigma_m_first / FLOATING_TP_SIGMA_M) ** 2
                 ev = self.evaluate(x, pts)
             lam = lam / 10.0 if lam > 1e-7 else 0.0
             n_obs = self._n_obs(ev)
@@ -916,9 +963,11 @@ def adjust(
         positions ray-traced through the unadjusted models, as Teo et al. write it; with
         on-board errors of tens of metres this pulls the block toward the on-board
         positions (a bias that grows with the number of TPs). ``"floating"`` (default):
-        re-centred on the current estimate at every iteration, so that they stabilise weak
-        geometry (damping) without biasing the solution; they are not counted as
-        observations in the degrees of freedom.
+        they damp the first step from the on-board positions, then are re-centred on the
+        estimate at every iteration and released to a sigma of
+        :data:`FLOATING_TP_SIGMA_M` (they only keep a point regular where nothing else
+        determines it), so they never bias the solution nor slow its convergence; they are
+        not counted as observations in the degrees of freedom.
     robust : {"none", "huber", "cauchy", "snooping"}
         Robust estimation of the image measurements (after a first least-squares
         solution): Huber's or Cauchy's re-weighting with constant ``robust_k`` (in units
@@ -1046,7 +1095,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
                 names=names, units=tuple(model.parameters.units[a] for a in s.adj[i]),
                 prior=np.array(s.models[i].parameters.values[s.adj[i]]),
                 values=np.array(model.parameters.values[s.adj[i]]),
-                prior_sigmas=np.array(s.models[i].parameters.sigmas[s.adj[i]]),
+                prior_sigmas=np.sqrt(np.diag(engine.priors[i][1])[s.adj[i]]),
                 sigmas=np.sqrt(np.diag(q)))
             cov_blocks.append(q)
             index.extend((image, n) for n in names)

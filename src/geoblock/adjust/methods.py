@@ -28,8 +28,6 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
-import numpy as np
-
 from geoblock.errors import AdjustmentError
 from geoblock.models.corrections import ImageCorrection
 from geoblock.models.protocol import SensorModel
@@ -53,7 +51,6 @@ def prepare_model(
     *,
     parameters: str = "default",
     correction: int | None = None,
-    sigmas: Mapping[str, float] | None = None,
     accuracy_m: float | None = None,
     where: str = "model",
 ) -> SensorModel:
@@ -67,8 +64,6 @@ def prepare_model(
     correction : {0, 1, 2}, optional
         Wrap the (preset) model in an :class:`~geoblock.models.ImageCorrection` of that order;
         the wrapped model's own parameters are then fixed.
-    sigmas : mapping of str to float, optional
-        A-priori sigmas of named parameters of the result (``inf``: free; 0: fixed).
     accuracy_m : float, optional
         The product's location accuracy (1 sigma, metres), for presets that derive their
         sigmas from it.
@@ -94,29 +89,4 @@ def prepare_model(
         if correction not in (0, 1, 2):
             raise AdjustmentError(f"{where}: correction must be 0, 1 or 2, got {correction!r}")
         model = ImageCorrection(model, order=int(correction))
-    if sigmas:
-        model = _with_sigmas(model, sigmas, where)
     return model
-
-
-def _with_sigmas(model: SensorModel, sigmas: Mapping[str, float], where: str) -> SensorModel:
-    params = model.parameters
-    values = np.array(params.sigmas, dtype=np.float64)
-    adjustable = np.array(params.adjustable)
-    for name, sigma in sigmas.items():
-        if name not in params.names:
-            raise AdjustmentError(f"{where}: sigmas: model {model.name!r} has no parameter "
-                                  f"{name!r}; its parameters are {list(params.names)}")
-        k = params.names.index(name)
-        if sigma == 0:
-            adjustable[k] = False
-        else:
-            values[k] = float(sigma)
-    if isinstance(model, ImageCorrection):
-        return ImageCorrection(model.model, model.order, params.values, values, adjustable)
-    replace = getattr(model, "with_parameter_set", None)
-    try:
-        return replace("default", sigmas=values, adjustable=adjustable)  # type: ignore[misc]
-    except Exception as exc:  # the model's set cannot take sigmas
-        raise AdjustmentError(f"{where}: model {model.name!r} does not accept a-priori sigmas "
-                              f"from the block file ({exc})") from None

@@ -205,7 +205,8 @@ class GroundPoints:
             values[name] = arr
         unique, counts = np.unique(ids, return_counts=True)
         if (counts > 1).any():
-            raise ObservationError(f"{where}: duplicate point ids {unique[counts > 1][:5].tolist()}")
+            dup = unique[counts > 1][:5].tolist()
+            raise ObservationError(f"{where}: duplicate point ids {dup}")
         ids.flags.writeable = False
         kind.flags.writeable = False
         object.__setattr__(self, "id", ids)

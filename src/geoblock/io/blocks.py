@@ -637,7 +637,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
                 model, parameters=im.parameters if im.parameters is not None
                 else method["parameters"],
                 correction=im.correction if im.correction is not None else method["correction"],
-                sigmas=dict(im.sigmas), accuracy_m=im.accuracy_m, where=where)
+                accuracy_m=im.accuracy_m, where=where)
         except AdjustmentError as exc:
             raise BlockFileError(str(exc)) from None
     dem = None
@@ -648,7 +648,8 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
         if spec.dem.sigma is not None:
             dem_sigma = spec.dem.sigma
     try:
-        block = AdjustBlock(models, measurements, ground, dem, dem_sigma)
+        block = AdjustBlock(models, measurements, ground, dem, dem_sigma,
+                            {im.id: dict(im.sigmas) for im in spec.images if im.sigmas})
     except AdjustmentError as exc:
         raise BlockFileError(f"{name}: {exc}") from None
     return OpenedBlock(spec, block, options)
