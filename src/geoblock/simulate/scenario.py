@@ -257,7 +257,9 @@ class Scenario:
     render : RenderConfig
     report : ReportConfig
     method : str
-        The adjustment method written to the block file.
+        The adjustment method written to the block file (``dg``: the on-board linescan
+        models' direct-georeferencing set; ``rpcv0``, ``rpcv1``: image-space corrections;
+        see :mod:`geoblock.adjust.methods`).
     source : str
         Where the scenario came from (a file path or ``preset:NAME/VARIANT``).
     """
@@ -271,7 +273,7 @@ class Scenario:
     points: PointsConfig = PointsConfig()
     render: RenderConfig = RenderConfig()
     report: ReportConfig = ReportConfig()
-    method: str = "mba"
+    method: str = "dg"
     source: str = ""
 
     def replace(self, **changes: Any) -> Scenario:
@@ -469,7 +471,13 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
     seed = r.number(data, "seed", "", 0, integer=True, low=0)
     name = r.string(data, "name", "", default="scenario")
     description = r.string(data, "description", "", default="")
-    method = r.string(data, "method", "", default="mba")
+    method = r.string(data, "method", "", default="dg")
+    from geoblock.adjust.methods import METHODS
+
+    if method not in METHODS:
+        raise r.error("method", f"unknown adjustment method {method!r}; methods: "
+                                f"{', '.join(METHODS)} (the simulated on-board models are "
+                                "linescan models: dg, rpcv0, rpcv1 or default apply)")
 
     images_raw = data.get("images")
     if not isinstance(images_raw, list) or not images_raw:
@@ -678,7 +686,7 @@ def _teo(variant: str) -> dict[str, Any]:
             + (" (small: 600 x 600 px strips at 100 m, same footprints)" if small else "")
         ),
         "seed": 2010,
-        "method": "mba",
+        "method": "dg",
         "images": [{"id": f"strip{k}", "preset": f"spot5-strip{k}",
                     **({"scale": 40} if small else {})} for k in (1, 2, 3)],
         "terrain": {"kind": "ridged", "relief": [0.0, 3800.0],
@@ -738,7 +746,7 @@ def _chen(variant: str) -> dict[str, Any]:
             + (" (small: 600 x 600 px at 100 m, same footprint)" if small else "")
         ),
         "seed": 1993,
-        "method": "mba",
+        "method": "dg",
         "images": [{"id": "spot1a", "preset": "spot1a", **({"scale": 10} if small else {})}],
         "terrain": {"kind": "ridged", "relief": [150.0, 1100.0],
                     "resolution_m": 100.0 if small else 20.0, "vertical": "ellipsoid",
@@ -1067,7 +1075,8 @@ def run_scenario(
                      for i in sims),
         method=scenario.method, ground_points=files["points:ground"],
         image_points=files["points:image"], truth=files["points:truth"],
-        dem=BlockDem(str(files[f"dem:{first}"])), name=scenario.name,
+        dem=BlockDem(str(files[f"dem:{first}"]), sigma=scenario.dems[0].rmse_z or None),
+        name=scenario.name,
         outputs={"directory": out / "adjusted", "report": out / "adjusted" / "report.md"},
     )
     files["block"] = write_block(out / "block.toml", block)
