@@ -189,10 +189,6 @@ def test_rpc_block_beats_single_and_nears_the_affine_floor(rpc_block):
     single, block = rpc_block["single"], rpc_block["adjusted"]
     ictp_single = np.sqrt(np.mean(single.ictp.distance_2d ** 2))
     ictp_block = np.sqrt(np.mean(block.ictp.distance_2d ** 2))
-    print("ICTP single %.2f block %.2f; ICP single %.2f block %.2f collocated %.2f floor %.2f" % (
-        ictp_single, ictp_block, icp_rmse(single), icp_rmse(block),
-        icp_rmse(rpc_block["collocated"]), _icp_rmse_of(rpc_block["floor_models"],
-                                                        rpc_block["block"])))
     assert ictp_single > 2.0 * ictp_block
     floor = _icp_rmse_of(rpc_block["floor_models"], rpc_block["block"])
     # the block trades a little absolute accuracy for consistency where the affine model
