@@ -167,3 +167,15 @@ def test_errors(scene):
     far = ConstantVelocityPushbroom.example(SHAPE, roll=0.3)  # looks ~200 km away from the DEM
     with pytest.raises(GeoblockError, match="found 0 of the 1 GCPs of image 'image1' in cell 0"):
         simulate_points([far], terrain, gcp=9, tp=0)
+
+
+def test_observations_feed_the_block_engine(scene, noise_free):
+    from geoblock.adjust import Block, adjust
+
+    models, terrain = scene
+    ground, measurements = noise_free.observations()
+    assert set(ground.kind) == {"gcp", "icp"} and len(measurements) == len(noise_free.image)
+    assert set(measurements.kind) == {"gcp", "icp", "tp", "ictp"}
+    # noise-free points through the true models: nothing to adjust, residuals ~0
+    result = adjust(Block(models, measurements, ground, terrain.to_dem()), mode="single")
+    assert np.nanmax(np.abs(result.check.row)) < 1e-3

@@ -32,14 +32,17 @@ from typing import Any
 import numpy as np
 
 from geoblock import coords
+from geoblock.adjust.observations import KINDS, GroundPoints, ImagePoints
 from geoblock.dem.intersect import localize
 from geoblock.errors import GeoblockError
 from geoblock.typing import Status
 
-__all__ = ["KINDS", "GroundPoints", "ImagePoints", "PointSet", "simulate_points"]
+__all__ = ["KINDS", "PointSet", "SimulatedGround", "SimulatedMeasurements", "simulate_points"]
 
-KINDS = ("gcp", "icp", "tp", "ictp")
-"""Point kinds: ground control, independent check, tie, independent check tie point."""
+
+#: pointing sigma (pixels) given to the measurements of a noise-free simulation by
+#: :meth:`PointSet.observations`
+NOISE_FREE_SIGMA_PX = 1e-3
 
 _VISIBLE_M = 1.0  # a ray that meets the terrain farther than this from the point: hidden
 
@@ -51,7 +54,7 @@ def _frozen(a: Any, dtype: Any) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class GroundPoints:
+class SimulatedGround:
     """One row per point (every kind), with its true and its surveyed ground coordinates.
 
     Attributes
@@ -95,7 +98,7 @@ class GroundPoints:
 
 
 @dataclass(frozen=True, eq=False)
-class ImagePoints:
+class SimulatedMeasurements:
     """One row per measurement of a point in an image.
 
     Attributes
@@ -134,23 +137,35 @@ class ImagePoints:
 
 @dataclass(frozen=True, eq=False)
 class PointSet:
-    """Simulated points: :class:`GroundPoints`, :class:`ImagePoints` and the image names.
+    """Simulated points: :class:`SimulatedGround`, :class:`SimulatedMeasurements` and the image names.
 
     Attributes
     ----------
-    ground : GroundPoints
-    image : ImagePoints
+    ground : SimulatedGround
+    image : SimulatedMeasurements
     images : tuple of str
         Image names, in the order the models were given.
     """
 
-    ground: GroundPoints
-    image: ImagePoints
+    ground: SimulatedGround
+    image: SimulatedMeasurements
     images: tuple[str, ...]
 
     def count(self, kind: str) -> int:
         """Number of points of a kind (``gcp``, ``icp``, ``tp``, ``ictp``)."""
         return int(np.count_nonzero(self.ground.kind == kind))
+
+    def observations(self) -> tuple[GroundPoints, ImagePoints]:
+        """What a user would be given, as the block engine's tables: the surveyed GCPs and
+        ICPs (:class:`geoblock.adjust.GroundPoints`) and the noisy measurements of every kind
+        (:class:`geoblock.adjust.ImagePoints`); no truth. A noise-free simulation's pointing
+        sigma of 0 becomes :data:`NOISE_FREE_SIGMA_PX` (measurement sigmas must be > 0)."""
+        g, m = self.ground, self.image
+        keep = np.isin(g.kind, ("gcp", "icp"))
+        ground = GroundPoints(g.id[keep], g.kind[keep], g.lon[keep], g.lat[keep], g.h[keep],
+                              g.sigma_e[keep], g.sigma_n[keep], g.sigma_h[keep])
+        sigma = np.where(m.sigma > 0, m.sigma, NOISE_FREE_SIGMA_PX)
+        return ground, ImagePoints(m.id, m.image, m.row, m.col, sigma, sigma, m.kind)
 
     def ground_columns(self) -> dict[str, np.ndarray]:
         """Columns of the ground-point file: GCPs and ICPs, ``id, lon, lat, h, sigma_e,
@@ -536,14 +551,14 @@ def simulate_points(
     xyz = xyz + np.einsum("nij,ni->nj", rot, enu)
     lon_s, lat_s, h_s = coords.ecef_to_geodetic(xyz[:, 0], xyz[:, 1], xyz[:, 2])
     nan = np.full(n_pts, np.nan)
-    ground = GroundPoints(
+    ground = SimulatedGround(
         id=ids.astype(str), kind=kind, lon_true=lon_t, lat_true=lat_t, h_true=h_t,
         lon=np.where(surveyed, lon_s, nan), lat=np.where(surveyed, lat_s, nan),
         h=np.where(surveyed, h_s, nan),
         sigma_e=np.where(surveyed, sigma_e, nan), sigma_n=np.where(surveyed, sigma_n, nan),
         sigma_h=np.where(surveyed, sigma_h, nan), blunder=g_blunder,
     )
-    image = ImagePoints(
+    image = SimulatedMeasurements(
         id=ids.astype(str)[pt], image=img, kind=kind[pt], row_true=row_true, col_true=col_true,
         row=row_m, col=col_m, sigma=np.full(n_meas, float(sigma_px)), blunder=blunder,
     )
