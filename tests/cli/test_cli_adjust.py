@@ -132,6 +132,19 @@ def test_block_file_errors_name_the_file_and_field(runner, cli, block_dir, edit,
     assert not (block_dir / "adj").exists()
 
 
+def test_simulate_then_adjust_with_relative_paths(runner, cli, tmp_path, monkeypatch):
+    """The README's two lines, from a working directory, with relative paths."""
+    monkeypatch.chdir(tmp_path)
+    scenario = tmp_path / "tiny.toml"
+    scenario.write_text('preset = "teo2010-spot5"\n[render]\nenabled = false\n')
+    assert runner.invoke(cli, ["simulate", "tiny.toml", "teo"]).exit_code == 0
+    text = (tmp_path / "teo" / "block.toml").read_text()
+    assert 'ground = "points/ground.csv"' in text  # relative to the block file
+    result = runner.invoke(cli, ["adjust", "teo/block.toml"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "teo" / "adjusted" / "report.md").exists()
+
+
 def test_help(runner, cli):
     result = runner.invoke(cli, ["adjust", "--help"])
     assert result.exit_code == 0

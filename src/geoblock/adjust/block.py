@@ -51,6 +51,7 @@ from geoblock.adjust.statistics import (
     PointErrors,
     ictp_accuracy,
 )
+from geoblock.adjust.weights import ground_covariance, prior_weight, undetermined
 from geoblock.errors import (
     AdjustmentError,
     ObservationError,
@@ -83,6 +84,8 @@ TP_PRIORS = ("floating", "fixed")
 #: GCP sigmas below this (metres) are raised to it: a sigma of 0 means "error-free" and
 #: would give an infinite weight
 MIN_GROUND_SIGMA_M = 1e-3
+#: converged also when the cost changes by less than this fraction in an iteration
+COST_TOLERANCE = 1e-10
 #: sigma (metres) of the floating TP pseudo-observations after the first iteration: they only
 #: keep a point regular where nothing else determines it (parallel rays without a DEM)
 FLOATING_TP_SIGMA_M = 1e4
@@ -404,23 +407,6 @@ def _prior(model: SensorModel, overrides: Mapping[str, float]) -> tuple[np.ndarr
     return mask, cov
 
 
-def _sqrt_psd_inv(cov: np.ndarray) -> np.ndarray:
-    """Weight matrix of a covariance where finite; zero rows/columns for infinite sigmas."""
-    finite = np.isfinite(np.diag(cov))
-    w = np.zeros_like(cov)
-    if finite.any():
-        sub = np.ix_(finite, finite)
-        w[sub] = np.linalg.inv(cov[sub])
-    return w
-
-
-def _enu_cov_to_local(frame: coords.LocalFrame, lon, lat, sig: np.ndarray) -> np.ndarray:
-    """(J, 3, 3) covariance in the local frame of diagonal ENU-at-point sigmas (J, 3)."""
-    r_pt = coords.enu_rotation(lon, lat)  # (J, 3, 3) ECEF -> ENU at the point
-    rot = frame.rotation @ np.swapaxes(r_pt, -1, -2)  # ENU at point -> local
-    return rot @ (sig[:, :, None] ** 2 * np.eye(3)) @ np.swapaxes(rot, -1, -2)
-
-
 def _local_to_enu_rotation(frame: coords.LocalFrame, lon, lat) -> np.ndarray:
     """(J, 3, 3) rotation from the local frame to ENU at each point."""
     return coords.enu_rotation(lon, lat) @ frame.rotation.T
@@ -465,7 +451,7 @@ class _Engine:
         prior_w = np.zeros((k, k))
         for i in range(len(models)):
             sl = slice(offsets[i], offsets[i] + sizes[i])
-            prior_w[sl, sl] = _sqrt_psd_inv(priors[i][1][np.ix_(adj[i], adj[i])])
+            prior_w[sl, sl] = prior_weight(priors[i][1][np.ix_(adj[i], adj[i])])
         prior_x = _params_vector(models, adj, gidx, k)
 
         kinds = ("gcp", "tp") if use_tps else ("gcp",)
@@ -504,7 +490,7 @@ class _Engine:
             self.tp_sigma_m_first = float(np.max(tp_sig))
         frame = coords.LocalFrame.centred_on(lon0, lat0, h0)
         x0 = np.stack(frame.from_geodetic(lon0, lat0, h0), axis=-1)
-        g_weight = np.linalg.inv(_enu_cov_to_local(frame, lon0, lat0, sig))
+        g_weight = np.linalg.inv(ground_covariance(lon0, lat0, sig, frame.rotation))
         dem_rows = is_tp & (self.dem_control != "none")
         self.s = _Setup(
             ids=ids, models=models, adj=adj, gidx=gidx, n_params=k, prior_x=prior_x,
@@ -698,20 +684,14 @@ class _Engine:
             return SingularSystemError(f"block: singular normal equations ({exc})", ())
         if hasattr(reduced, "toarray"):
             reduced = reduced.toarray()
-        d = np.sqrt(np.abs(np.diag(reduced)))
-        d[d == 0] = 1.0
-        w, vec = np.linalg.eigh(reduced / np.outer(d, d))
-        small = w < 1e-9 * max(w[-1], 1e-300)
-        involved = np.max(np.abs(vec[:, small]), axis=1) > 0.1 if small.any() else \
-            np.zeros(w.size, bool)
-        names = []
+        labels = [""] * s.n_params
         for i, image in enumerate(s.ids):
             for kk, a in enumerate(s.adj[i]):
-                if involved[s.gidx[i, kk]]:
-                    names.append(f"{image}:{s.models[i].parameters.names[a]}")
+                labels[s.gidx[i, kk]] = f"{image}:{s.models[i].parameters.names[a]}"
+        names, directions = undetermined(reduced, labels)
         return SingularSystemError(
             f"block: the observations cannot determine parameter(s) {', '.join(names[:12])}"
-            f"{' ...' if len(names) > 12 else ''} ({int(small.sum())} singular direction(s)); "
+            f"{' ...' if len(names) > 12 else ''} ({directions} singular direction(s)); "
             "add or spread GCPs/TPs in those images, or give these parameters a-priori sigmas",
             tuple(names))
 
@@ -758,8 +738,9 @@ class _Engine:
             # step size in a-priori-cofactor sigmas of the undamped system
             sig_p = np.sqrt(_inverse_diag_estimate(system))
             sig_x = np.sqrt(np.maximum(np.einsum("jii->ji", system.c), 1e-300))
-            step = max(float(np.max(np.abs(dp) / sig_p, initial=0.0)),
-                       float(np.max(np.abs(dx) / sig_x, initial=0.0)))
+            # the change actually made (dem_control="iterate" puts the heights back on the DEM)
+            step = max(float(np.max(np.abs(x_new - x) / sig_p, initial=0.0)),
+                       float(np.max(np.abs(pts_new - pts) / sig_x, initial=0.0)))
             rel = (ev["cost"] - ev_new["cost"]) / max(ev["cost"], 1e-300)
             x, pts, ev = x_new, pts_new, ev_new
             if self.tp_prior == "floating":
@@ -780,7 +761,7 @@ class _Engine:
                             "downweighted": int(np.sum(self.weight < 0.5))})
             progress(f"{label}: iteration {it:2d}  sigma0 {sigma0:10.4g}  max step "
                      f"{step:9.3g} sigma  rejected {history[-1]['rejected']}")
-            small = step < tolerance or abs(rel) < 1e-12
+            small = step < tolerance or abs(rel) < COST_TOLERANCE
             # robust phase: once least squares has converged, re-weight at every iteration
             # (IRLS; data snooping only at convergence) until the weights settle
             if robust != "none" and rounds < 20 and (small or (robust_started
@@ -1139,7 +1120,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
         in_solution = np.isfinite(weight)
         for pid in ids_flagged.tolist():
             rows = np.flatnonzero((meas.id == pid) & in_solution)
-            if rows.size == 2:
+            if rows.size == 2 and meas.kind[rows[0]] == "tp":
                 ambiguous[rows] = True
                 flagged[rows] = True
         notes.append(f"{int(flagged.sum())} measurement(s) flagged as blunders (test > "

@@ -23,6 +23,7 @@ import numpy as np
 from geoblock import coords
 from geoblock.adjust.observations import ControlPoints
 from geoblock.adjust.statistics import AccuracyStats
+from geoblock.adjust.weights import ground_covariance, prior_weight, undetermined
 from geoblock.errors import AdjustmentError, SingularSystemError, TooFewPointsError
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
@@ -180,11 +181,7 @@ def resect(
             "each); add GCPs or give parameters a-priori sigmas"
         )
     # prior weight on the constrained subset
-    prior_weight = np.zeros((adjustable.size, adjustable.size))
-    if constrained.any():
-        sub = np.ix_(constrained, constrained)
-        prior_weight[sub] = np.linalg.inv(prior_cov[sub])
-    prior_sqrt = _sqrt_weight(prior_weight)  # (K, K) with L^T L = prior_weight
+    prior_sqrt = _sqrt_weight(prior_weight(prior_cov))  # (K, K) with L^T L = prior_weight
     x_prior = params.values[adjustable].copy()
     x = params.values.copy()
 
@@ -262,12 +259,8 @@ def _check_projected(status: np.ndarray, gcps: ControlPoints, model: SensorModel
 
 def _ground_covariance_ecef(points: ControlPoints) -> np.ndarray:
     """(N, 3, 3) covariance of the ground coordinates in ECEF, metres squared."""
-    rot = coords.enu_rotation(points.lon, points.lat)  # ECEF -> ENU
-    enu = np.zeros((len(points), 3, 3))
-    enu[:, 0, 0] = points.sigma_e**2
-    enu[:, 1, 1] = points.sigma_n**2
-    enu[:, 2, 2] = points.sigma_h**2
-    return np.swapaxes(rot, -1, -2) @ enu @ rot
+    sig = np.stack([points.sigma_e, points.sigma_n, points.sigma_h], axis=-1)
+    return ground_covariance(points.lon, points.lat, sig)
 
 
 def _whitening(model: SensorModel, points: ControlPoints, ground_cov: np.ndarray) -> np.ndarray:
@@ -296,25 +289,23 @@ def _solve(
     norms = np.linalg.norm(design, axis=0)
     zero = norms == 0
     if zero.any():
-        undetermined = tuple(n for n, z in zip(names, zero, strict=True) if z)
+        unused = tuple(n for n, z in zip(names, zero, strict=True) if z)
         raise SingularSystemError(
-            f"resect: the observations do not depend on parameter(s) {', '.join(undetermined)}: "
+            f"resect: the observations do not depend on parameter(s) {', '.join(unused)}: "
             "they cannot be determined; fix them (adjustable=False) or give them a-priori sigmas",
-            undetermined,
+            unused,
         )
     scaled = design / norms
     u, s, vt = np.linalg.svd(scaled, full_matrices=False)
     small = s < RANK_TOLERANCE * s[0]
     if small.any():
-        null = vt[small]  # rows span the null space of the scaled design
-        involved = np.max(np.abs(null), axis=0) > 0.1
-        undetermined = tuple(n for n, z in zip(names, involved, strict=True) if z)
+        names_out, directions = undetermined(scaled, names, RANK_TOLERANCE, design=True)
         raise SingularSystemError(
-            f"resect: the GCPs cannot determine parameters {', '.join(undetermined)} (the normal "
-            f"equations have {int(small.sum())} singular direction(s)). Spread the GCPs over "
+            f"resect: the GCPs cannot determine parameters {', '.join(names_out)} (the normal "
+            f"equations have {directions} singular direction(s)). Spread the GCPs over "
             "the image (an affine correction needs three GCPs that are not collinear) or give "
             "these parameters a-priori sigmas",
-            undetermined,
+            names_out,
         )
     step_scaled = vt.T @ ((u.T @ rhs) / s)
     n_inv_scaled = (vt.T / s**2) @ vt

@@ -1,42 +1,54 @@
 """Block files: the TOML description of a block of images to adjust together.
 
-A block file names the images (sensor-model file, optional raster, the parameter set to adjust),
-the point files, the DEM, the adjustment method with its options and the outputs wanted.
-Relative paths are relative to the block file's directory. Example::
+A block file names the images (sensor-model file, optional raster, the parameter set or
+image-space correction to adjust), the point files, the DEM with its accuracy, the
+adjustment method with the engine's options and the outputs wanted. Relative paths are
+relative to the block file's directory. Example::
 
     # geoblock block file
     version = 1
     name = "taiwan-3-strips"
-    method = "mba"            # the adjustment: mba, dg, rfm, rpcv0, rpcv1, ...
+    method = "dg"             # mba, dg, rfm, rpcv0, rpcv1, default (geoblock.adjust.methods)
+    mode = "block"            # or "single": each image alone with its GCPs
 
     [points]
     ground = "ground.csv"     # id, lon, lat, h, sigma_e, sigma_n, sigma_h, kind (gcp|icp)
-    image = "image.csv"       # id, image, row, col, sigma[, kind]
-    truth = "truth.csv"       # optional: simulated truth, for accuracy reports
+    image = "image.csv"       # id, image, row, col, sigma[, kind gcp|icp|tp|ictp]
+    truth = "truth.csv"       # optional: simulated truth
 
     [dem]
     path = "dem.tif"          # or "const:250"
     vertical = "geoid"        # optional: as the file states by default
     geoid = "egm96_15.gtx"    # optional
+    sigma = 5.0               # optional: the DEM's accuracy, metres (default 5)
 
-    [options]                 # free-form options of the method
-    dem_control = true
-    max_iterations = 20
+    [options]                 # the engine's options (ADJUST_OPTIONS), all optional
+    dem_control = "observation"   # observation | iterate | none
+    robust = "cauchy"             # none | huber | cauchy | snooping
+    max_iterations = 30
+    sigma_px = 0.5                # measurements without a sigma column
+    collocation = { filtering_ratio = 0.2 }
 
     [outputs]                 # free-form: name = path
     directory = "out"
-    report = "out/report.md"
 
     [[images]]
     id = "strip1"
     model = "strip1.json"
     raster = "strip1.tif"     # optional
-    parameters = "dg"         # optional: the parameter set to adjust ("default")
-    sigmas = { dp_along = 10.0, roll_bias = 1e-5 }   # optional a-priori sigmas
+    parameters = "dg"         # optional: a parameter set of the model (default: the method's)
+    accuracy_m = 30.0         # optional: the product's accuracy, for the preset's sigmas
+    sigmas = { dp_along = 10.0, roll_bias = 1e-5 }   # optional a-priori sigmas (0: fixed)
+
+    [[images]]
+    id = "scene2"
+    model = "scene2_RPC.TXT"
+    correction = 1            # optional: an image-space correction of order 0, 1 or 2
 
 :func:`read_block` validates the file (unknown keys, types, duplicate image ids, missing
 required fields are errors naming the field) and returns a frozen :class:`Block`;
-:func:`write_block` writes one back (paths relative to the new file where possible).
+:func:`write_block` writes one back (paths relative to the new file); :func:`open_block`
+also opens the models, point files and DEM for :func:`geoblock.adjust.adjust`.
 """
 
 from __future__ import annotations
@@ -215,9 +227,6 @@ def _check(block: Block, where: str) -> None:
             if not (isinstance(sigma, int | float) and not isinstance(sigma, bool) and sigma >= 0):
                 raise BlockFileError(f"{where}: 'images[{k}].sigmas.{name}' must be a number >= 0 "
                                      f"(inf for free), got {sigma!r}")
-    if not _METHOD.fullmatch(block.method):
-        raise BlockFileError(f"{where}: 'method' must be a lower-case name such as 'mba', 'dg', "
-                             f"'rfm', got {block.method!r}")
         if im.correction is not None and im.correction not in (0, 1, 2):
             raise BlockFileError(f"{where}: 'images[{k}].correction' must be 0, 1 or 2, got "
                                  f"{im.correction!r}")
@@ -225,6 +234,9 @@ def _check(block: Block, where: str) -> None:
                                               and im.accuracy_m > 0):
             raise BlockFileError(f"{where}: 'images[{k}].accuracy_m' must be a number > 0, got "
                                  f"{im.accuracy_m!r}")
+    if not _METHOD.fullmatch(block.method):
+        raise BlockFileError(f"{where}: 'method' must be a lower-case name such as 'mba', 'dg', "
+                             f"'rfm', got {block.method!r}")
     if block.mode not in ("block", "single"):
         raise BlockFileError(f"{where}: 'mode' must be 'block' or 'single', got {block.mode!r}")
     if block.dem is not None and block.dem.sigma is not None and not (
@@ -376,16 +388,16 @@ def _relative(path: Path | str, base: Path) -> str:
     text = str(path)
     if text.startswith("const:"):
         return text
-    p = Path(path)
+    p = Path(path).absolute()  # a relative path is relative to the working directory
     try:
-        return Path(os.path.relpath(p, base)).as_posix() if p.is_absolute() else p.as_posix()
+        return Path(os.path.relpath(p, base)).as_posix()
     except ValueError:  # another drive (Windows)
         return str(p)
 
 
 def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """The block as the TOML document's dictionary; paths relative to ``base`` if given."""
-    b = Path(base).resolve() if base is not None else None
+    b = Path(base).absolute() if base is not None else None
 
     def rel(p: Path | str) -> str:
         return _relative(p, b) if b is not None else str(p)
