@@ -164,9 +164,9 @@ def rpc_block(tmp_path_factory):
 
 
 def _icp_rmse_of(models, block) -> float:
-    from geoblock.adjust.block import _check_points
+    from geoblock.adjust.block import check_errors
 
-    check, _, _ = _check_points(block, models, {}, 1.0)
+    check = check_errors(block, models)
     icp = np.char.lower(check.kind.astype(str)) == "icp"
     return float(np.sqrt(np.mean(check.e[icp] ** 2 + check.n[icp] ** 2)))
 

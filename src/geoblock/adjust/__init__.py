@@ -11,6 +11,7 @@ from geoblock.adjust.block import (
     ParameterEstimates,
     PointResults,
     adjust,
+    check_errors,
 )
 from geoblock.adjust.collocation import Collocation, CollocationCorrection, fit_collocation
 from geoblock.adjust.methods import METHODS, prepare_model
@@ -46,6 +47,7 @@ __all__ = [
     "ParameterEstimates",
     "PointResults",
     "adjust",
+    "check_errors",
     "fit_collocation",
     "prepare_model",
     "AccuracyStats",

@@ -69,6 +69,7 @@ __all__ = [
     "Block",
     "BlockResult",
     "adjust",
+    "check_errors",
 ]
 
 MODES = ("block", "single")
@@ -1050,7 +1051,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
     converged = True
     iterations = 0
     history: list[dict] = []
-    q_by_image: dict[str, np.ndarray] = {}
+    q_by_image: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     threshold = np.inf
     for engine, out in solutions:
         s = engine.s
@@ -1070,7 +1071,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
             models[image] = model
             g = s.gidx[i, : s.adj[i].size]
             q = st["q_pp"][np.ix_(g, g)] * var0
-            q_by_image[image] = q
+            q_by_image[image] = (s.adj[i], q)
             names = tuple(model.parameters.names[a] for a in s.adj[i])
             parameters[image] = ParameterEstimates(
                 names=names, units=tuple(model.parameters.units[a] for a in s.adj[i]),
@@ -1126,6 +1127,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
         notes.append(f"{int(flagged.sum())} measurement(s) flagged as blunders (test > "
                      f"{threshold:.3g}, chi-square 2 dof)")
 
+    adjusted = dict(models)  # before collocation: their parameters are the covariance's
     # collocation of the residual vectors
     if collocation:
         from geoblock.adjust.collocation import CollocationCorrection, fit_collocation
@@ -1140,7 +1142,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
             col = fit_collocation(meas.row[use], meas.col[use], v[use, 0], v[use, 1], **options)
             models[image] = CollocationCorrection(models[image], col)
 
-    check, predicted, v_check = _check_points(block, models, q_by_image, sigma0)
+    check, predicted, v_check = _check_points(block, models, q_by_image, sigma0, adjusted)
     icp_rows = np.isin(meas.kind, ("icp",))
     v[icp_rows] = v_check[icp_rows]
     ictp = None
@@ -1173,9 +1175,30 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
         robust=robust, notes=notes)
 
 
+def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) -> PointErrors:
+    """Ground errors at the block's GCP and ICP measurements through some models.
+
+    Each measured image point is located on the surface at its ground point's surveyed
+    height through its image's model and compared with the surveyed point (metres east and
+    north), as :attr:`BlockResult.check` does for the adjusted models: to evaluate any set of
+    models on a block (the unadjusted ones, a reference, ...).
+
+    Parameters
+    ----------
+    block : Block
+    models : mapping of str to SensorModel, optional
+        Default ``block.models``.
+    """
+    return _check_points(block, dict(block.models if models is None else models), {}, 1.0)[0]
+
+
 def _check_points(block: Block, models: Mapping[str, SensorModel],
-                  q_by_image: Mapping[str, np.ndarray], sigma0: float):
-    """GCP/ICP ground errors per measurement, their predicted sigmas, image residuals."""
+                  q_by_image: Mapping[str, tuple[np.ndarray, np.ndarray]], sigma0: float,
+                  adjusted: Mapping[str, SensorModel] | None = None):
+    """GCP/ICP ground errors per measurement through ``models``, their sigmas predicted
+    through ``adjusted`` (the models whose parameters ``q_by_image`` gives, per image, the
+    adjusted indices and their covariance of; default ``models``), image residuals."""
+    adjusted = models if adjusted is None else adjusted
     meas = block.measurements
     n = len(meas)
     v = np.full((n, 2), np.nan)
@@ -1202,15 +1225,15 @@ def _check_points(block: Block, models: Mapping[str, SensorModel],
         de, dn, _ = coords.enu_offsets(lon[mine], lat[mine], h[mine], lo, la, hh)
         e[mine], nn[mine] = de, dn
         # predicted covariance of the located point's E, N
+        model = adjusted[image]
         jg = model.partials_ground(lon[mine], lat[mine], h[mine]) @ np.swapaxes(
             coords.enu_rotation(lon[mine], lat[mine]), 1, 2)  # d(r,c)/d(e,n,u) at the point
         m_inv = np.linalg.inv(jg[:, :, :2])
         cov_img = np.zeros((mine.size, 2, 2))
         cov_img[:, 0, 0] = meas.sigma_row[m] ** 2
         cov_img[:, 1, 1] = meas.sigma_col[m] ** 2
-        q = q_by_image.get(image)
-        adjustable = np.flatnonzero(model.parameters.adjustable)
-        if q is not None and q.size and adjustable.size == q.shape[0]:
+        adjustable, q = q_by_image.get(image, (np.zeros(0, np.intp), np.zeros((0, 0))))
+        if q.size:
             a = model.partials_parameters(lon[mine], lat[mine], h[mine])[..., adjustable]
             cov_img = cov_img + a @ q @ np.swapaxes(a, 1, 2)
         up = jg[:, :, 2:3]

@@ -16,6 +16,13 @@ parameters, and sparsely above; the point steps follow by back-substitution.
 Everything is vectorised over measurements and points: no Python loop runs over either.
 Parameter blocks are padded to the largest ``K_i`` (``Kmax``); padded columns are zero and
 never scattered.
+
+Two implementations compute the same quantities: numba kernels that loop over measurements
+and over each point's measurements (:data:`USE_NUMBA`, the default), and the vectorised
+numpy reference (per-pair blocks gathered and scattered with ``bincount``/``add.at``), which
+the tests hold the kernels to. The kernels avoid the reference's (pairs, Kmax, Kmax)
+temporaries and its scatter; the Schur complement is accumulated from each point's pairs
+``a <= b`` (the other half by symmetry).
 """
 
 from __future__ import annotations
@@ -24,25 +31,38 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 import scipy.sparse
 import scipy.sparse.linalg
+from numba import njit
 
-__all__ = ["DENSE_LIMIT", "NormalSystem", "Pairs", "SingularPoints", "measurement_pairs"]
+__all__ = ["DENSE_LIMIT", "USE_NUMBA", "NormalSystem", "Pairs", "SingularPoints",
+           "measurement_pairs"]
 
 #: up to this many parameters the reduced system is solved densely
 DENSE_LIMIT = 4000
+#: assemble, reduce and back-substitute with the numba kernels (False: the numpy reference)
+USE_NUMBA = True
+#: with the kernels, dense reduced systems up to this size are factored on the calling
+#: thread (a numba Cholesky): as fast as LAPACK's at this size, and immune to the wake-up
+#: delays of BLAS's worker threads competing with numba's for the cores
+SERIAL_CHOLESKY_LIMIT = 400
 
 
 @dataclass(frozen=True)
 class Pairs:
     """All ordered pairs ``(a, b)`` of measurements of the same point (``a == b`` included).
 
-    ``point`` (P,) is their point; ``a``, ``b`` (P,) index the measurements.
+    ``point`` (P,) is their point; ``a``, ``b`` (P,) index the measurements. ``order`` (M,)
+    lists the measurements by point (stable) and ``start`` (J + 1,) where each point's run
+    begins in it (optional: derived from ``point_of`` when missing).
     """
 
     a: np.ndarray
     b: np.ndarray
     point: np.ndarray
+    order: np.ndarray | None = None
+    start: np.ndarray | None = None
 
 
 def measurement_pairs(point_of: np.ndarray, n_points: int) -> Pairs:
@@ -57,7 +77,18 @@ def measurement_pairs(point_of: np.ndarray, n_points: int) -> Pairs:
     b_sorted = start[point_of[order][a_sorted]] + offset
     a = order[a_sorted]
     b = order[b_sorted]
-    return Pairs(a, b, point_of[a])
+    return Pairs(a, b, point_of[a], order.astype(np.intp),
+                 np.concatenate([[0], np.cumsum(counts)]).astype(np.intp))
+
+
+def _by_point(point_of: np.ndarray, n_points: int, pairs: Pairs) -> tuple[np.ndarray, ...]:
+    """``(order, start)``: the measurements grouped by point (CSR), from ``pairs`` if known."""
+    if pairs.order is not None and pairs.start is not None \
+            and pairs.start.size == n_points + 1 and pairs.order.size == point_of.size:
+        return pairs.order, pairs.start
+    order = np.argsort(point_of, kind="stable").astype(np.intp)
+    counts = np.bincount(point_of, minlength=n_points)
+    return order, np.concatenate([[0], np.cumsum(counts)]).astype(np.intp)
 
 
 @dataclass
@@ -102,6 +133,21 @@ class NormalSystem:
     def __post_init__(self) -> None:
         k = self.n_params
         j = self.n_xx_extra.shape[0]
+        self._j = j
+        self._numba = USE_NUMBA
+        if self._numba:
+            self.a = np.ascontiguousarray(self.a, dtype=np.float64)
+            self.b = np.ascontiguousarray(self.b, dtype=np.float64)
+            self.v = np.ascontiguousarray(self.v, dtype=np.float64)
+            self.n_pp = np.array(self.n_pp_prior, dtype=np.float64)
+            self.b_p = np.array(self.b_p_prior, dtype=np.float64)
+            self.n_xx = np.array(self.n_xx_extra, dtype=np.float64)
+            self.b_x = np.array(self.b_x_extra, dtype=np.float64)
+            self.n_px = np.empty((self.a.shape[0], self.a.shape[2], 3))
+            self._order, self._start = _by_point(self.point_of, j, self.pairs)
+            _nb_accumulate(self.a, self.b, self.v, self.gidx, self.image_of, self.point_of,
+                           self.n_pp, self.b_p, self.n_xx, self.b_x, self.n_px)
+            return
         at = np.swapaxes(self.a, 1, 2)
         self.n_px = at @ self.b  # (M, Kmax, 3)
         n_pp_m = at @ self.a  # (M, Kmax, Kmax)
@@ -120,7 +166,6 @@ class NormalSystem:
         np.add.at(self.n_xx, self.point_of, n_xx_m)
         self.b_x = self.b_x_extra.copy()
         np.add.at(self.b_x, self.point_of, np.einsum("mki,mk->mi", self.b, self.v))
-        self._j = j
 
     # ------------------------------------------------------------------ solution
     def solve(self, damping: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -137,10 +182,15 @@ class NormalSystem:
         if damping:
             n_xx = n_xx + damping * np.einsum("jii->ji", n_xx)[:, :, None] * np.eye(3)
             n_pp = n_pp + damping * np.diag(np.diag(n_pp))
-        self.c = _inv3(n_xx)  # (J, 3, 3)
+        self.c = _inv3(n_xx, numba=self._numba)  # (J, 3, 3)
         reduced, rhs = self._reduce(n_pp)
         self.reduced = reduced
         dp = self._solve_reduced(reduced, rhs)
+        if self._numba:
+            dx = np.empty((self._j, 3))
+            _nb_back_substitute(self.n_px, self.c, self.b_x, self.gidx, self.image_of,
+                                self.point_of, np.ascontiguousarray(dp, dtype=np.float64), dx)
+            return dp, dx
         g = self.gidx[self.image_of]
         dp_m = np.where(g >= 0, dp[np.maximum(g, 0)], 0.0)  # (M, Kmax)
         t = self.b_x.copy()
@@ -149,6 +199,8 @@ class NormalSystem:
         return dp, dx
 
     def _reduce(self, n_pp: np.ndarray):
+        if self._numba:
+            return self._reduce_numba(n_pp)
         k = self.n_params
         p = self.pairs
         cb = self.c[self.point_of]  # (M, 3, 3)
@@ -171,6 +223,30 @@ class NormalSystem:
         sub = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(k, k)).tocsc()
         return scipy.sparse.csc_matrix(n_pp) - sub, rhs
 
+    def _reduce_numba(self, n_pp: np.ndarray):
+        k = self.n_params
+        rhs = np.array(self.b_p, dtype=np.float64)
+        dense = k <= DENSE_LIMIT
+        if dense:
+            reduced = np.array(n_pp, dtype=np.float64)
+            rows = cols = np.empty(0, np.intp)
+            vals = np.empty(0)
+        else:
+            reduced = np.empty((0, 0))
+            kmax = self.gidx.shape[1]
+            n = np.diff(self._start)
+            size = int(np.sum(n * (n + 1) // 2)) * kmax * kmax * 2
+            rows = np.empty(size, np.intp)
+            cols = np.empty(size, np.intp)
+            vals = np.empty(size)
+        used = _nb_reduce(self.n_px, self.c, self.b_x, self.gidx, self.image_of,
+                          self._order, self._start, dense, reduced, rhs, rows, cols, vals)
+        if dense:
+            return 0.5 * (reduced + reduced.T), rhs
+        sub = scipy.sparse.coo_matrix((vals[:used], (rows[:used], cols[:used])),
+                                      shape=(k, k)).tocsc()
+        return scipy.sparse.csc_matrix(n_pp) + sub, rhs
+
     @staticmethod
     def _solve_reduced(reduced, rhs: np.ndarray) -> np.ndarray:
         if reduced.shape[0] == 0:
@@ -185,6 +261,16 @@ class NormalSystem:
         if np.any(scale == 0):
             raise np.linalg.LinAlgError("a parameter has no observation")
         scaled = reduced / np.outer(scale, scale)
+        if USE_NUMBA and scaled.shape[0] <= SERIAL_CHOLESKY_LIMIT:
+            low = np.zeros(scaled.shape)
+            if not _nb_cholesky(np.ascontiguousarray(scaled), low):
+                raise np.linalg.LinAlgError("reduced system not positive definite")
+            d = np.diag(low)
+            if d.min() < 1e-7 * d.max():
+                raise np.linalg.LinAlgError("ill-conditioned reduced system")
+            out = np.ascontiguousarray(rhs / scale, dtype=np.float64)
+            _nb_cho_solve(low, out)
+            return out / scale
         try:
             factor = scipy.linalg.cho_factor(scaled, lower=True, check_finite=False)
         except scipy.linalg.LinAlgError as exc:
@@ -203,12 +289,29 @@ class NormalSystem:
         if reduced.shape[0] == 0:
             return np.zeros((0, 0))
         scale = np.sqrt(np.diag(reduced))
-        inv = np.linalg.inv(reduced / np.outer(scale, scale)) / np.outer(scale, scale)
+        scaled = reduced / np.outer(scale, scale)
+        inv = None
+        if self._numba:  # Cholesky inverse (potrf + potri): a third of a general inverse
+            factor, info = scipy.linalg.lapack.dpotrf(scaled, lower=True, clean=True)
+            if info == 0:
+                low, info = scipy.linalg.lapack.dpotri(factor, lower=True)
+                if info == 0:
+                    inv = np.tril(low) + np.tril(low, -1).T
+        if inv is None:
+            inv = np.linalg.inv(scaled)
+        inv = inv / np.outer(scale, scale)
         return 0.5 * (inv + inv.T)
 
     def point_cofactors(self, q_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``Q_xx`` (J, 3, 3) of the points and ``Q_px`` (M, Kmax, 3), the cofactor between
         each measurement's image parameters and its point."""
+        if self._numba:
+            q_xx = np.empty((self._j, 3, 3))
+            q_px = np.empty(self.n_px.shape)
+            _nb_point_cofactors(np.ascontiguousarray(q_pp, dtype=np.float64), self.n_px,
+                                self.c, self.gidx, self.image_of, self._order, self._start,
+                                q_xx, q_px)
+            return q_xx, q_px
         p = self.pairs
         ga = self.gidx[self.image_of[p.a]]
         gb = self.gidx[self.image_of[p.b]]
@@ -225,6 +328,13 @@ class NormalSystem:
 
     def hat_blocks(self, q_pp: np.ndarray, q_xx: np.ndarray, q_px: np.ndarray) -> np.ndarray:
         """(M, 2, 2) ``W^(1/2) J Q J^T W^(1/2)`` of every measurement."""
+        if self._numba:
+            out = np.empty((self.a.shape[0], 2, 2))
+            _nb_hat_blocks(np.ascontiguousarray(q_pp, dtype=np.float64),
+                           np.ascontiguousarray(q_xx, dtype=np.float64),
+                           np.ascontiguousarray(q_px, dtype=np.float64), self.a, self.b,
+                           self.gidx, self.image_of, self.point_of, out)
+            return out
         g = self.gidx[self.image_of]
         q_ii = _gather(q_pp, g, g)
         a, b = self.a, self.b
@@ -249,11 +359,29 @@ class SingularPoints(np.linalg.LinAlgError):
         self.points = points
 
 
-def _inv3(m: np.ndarray) -> np.ndarray:
+def _inv3(m: np.ndarray, numba: bool = False) -> np.ndarray:
     """Inverses of (J, 3, 3) symmetric positive definite blocks; :class:`SingularPoints`
-    naming the blocks that are not."""
+    naming the blocks that are not.
+
+    A block is singular when a diagonal is 0 or, scaled to a unit diagonal, its smallest
+    eigenvalue is below 1e-10 times its largest. ``numba``: the eigenvalues in closed form
+    and the inverse by the adjugate, per block in a kernel; blocks whose eigenvalue ratio is
+    below 1e-6 (near the test, or ill-conditioned) are redone by the numpy reference.
+    """
     if m.shape[0] == 0:
         return m.copy()
+    if numba:
+        m = np.ascontiguousarray(m, dtype=np.float64)
+        out = np.empty(m.shape)
+        redo = np.zeros(m.shape[0], np.bool_)
+        _nb_inv3(m, out, redo, 1e-6)
+        if redo.any():
+            idx = np.flatnonzero(redo)
+            try:
+                out[idx] = _inv3(m[idx])
+            except SingularPoints as exc:
+                raise SingularPoints(idx[exc.points]) from None
+        return out
     scale = np.sqrt(np.abs(np.einsum("jii->ji", m)))
     bad = np.any(scale == 0, axis=1)
     scale[scale == 0] = 1.0
@@ -263,3 +391,298 @@ def _inv3(m: np.ndarray) -> np.ndarray:
     if bad.any():
         raise SingularPoints(np.flatnonzero(bad))
     return np.linalg.inv(s) / (scale[:, :, None] * scale[:, None, :])
+
+
+# ================================================================================ kernels
+@njit(cache=True)
+def _nb_accumulate(a, b, v, gidx, image_of, point_of, n_pp, b_p, n_xx, b_x,
+                   n_px):  # pragma: no cover - numba
+    """Per measurement: ``N_px = A^T B`` into ``n_px``; ``A^T A``, ``A^T v`` scattered into
+    ``n_pp``, ``b_p``; ``B^T B``, ``B^T v`` into the point's ``n_xx``, ``b_x``."""
+    kmax = a.shape[2]
+    for m in range(a.shape[0]):
+        g = gidx[image_of[m]]
+        j = point_of[m]
+        for r in range(kmax):
+            for c in range(3):
+                n_px[m, r, c] = a[m, 0, r] * b[m, 0, c] + a[m, 1, r] * b[m, 1, c]
+        for r in range(kmax):
+            gr = g[r]
+            if gr < 0:
+                continue
+            b_p[gr] += a[m, 0, r] * v[m, 0] + a[m, 1, r] * v[m, 1]
+            for c in range(kmax):
+                gc = g[c]
+                if gc < 0:
+                    continue
+                n_pp[gr, gc] += a[m, 0, r] * a[m, 0, c] + a[m, 1, r] * a[m, 1, c]
+        for r in range(3):
+            b_x[j, r] += b[m, 0, r] * v[m, 0] + b[m, 1, r] * v[m, 1]
+            for c in range(3):
+                n_xx[j, r, c] += b[m, 0, r] * b[m, 0, c] + b[m, 1, r] * b[m, 1, c]
+
+
+@njit(cache=True)
+def _nb_reduce(n_px, cinv, b_x, gidx, image_of, order, start, dense, reduced, rhs, rows, cols,
+               vals):  # pragma: no cover - numba
+    """Schur complement over the points, point by point: ``rhs -= N_pj C_j b_j`` and, for
+    each pair ``a <= b`` of the point's measurements, ``-N_pa C_j N_bp`` (and its transpose
+    for ``a < b``) subtracted from ``reduced`` (dense) or written as triplets (negated).
+    Returns the number of triplets written."""
+    kmax = n_px.shape[1]
+    n_points = start.size - 1
+    most = 0
+    for j in range(n_points):
+        most = max(most, start[j + 1] - start[j])
+    left = np.empty((most, kmax, 3))
+    cbx = np.empty(3)
+    used = 0
+    for j in range(n_points):
+        m0 = start[j]
+        n = start[j + 1] - m0
+        cj = cinv[j]
+        for i in range(3):
+            cbx[i] = cj[i, 0] * b_x[j, 0] + cj[i, 1] * b_x[j, 1] + cj[i, 2] * b_x[j, 2]
+        for q in range(n):
+            m = order[m0 + q]
+            g = gidx[image_of[m]]
+            for r in range(kmax):
+                for c in range(3):
+                    left[q, r, c] = (n_px[m, r, 0] * cj[0, c] + n_px[m, r, 1] * cj[1, c]
+                                     + n_px[m, r, 2] * cj[2, c])
+                if g[r] >= 0:
+                    rhs[g[r]] -= (n_px[m, r, 0] * cbx[0] + n_px[m, r, 1] * cbx[1]
+                                  + n_px[m, r, 2] * cbx[2])
+        for qa in range(n):
+            ga = gidx[image_of[order[m0 + qa]]]
+            for qb in range(qa, n):
+                mb = order[m0 + qb]
+                gb = gidx[image_of[mb]]
+                for r in range(kmax):
+                    if ga[r] < 0:
+                        continue
+                    for c in range(kmax):
+                        if gb[c] < 0:
+                            continue
+                        val = (left[qa, r, 0] * n_px[mb, c, 0] + left[qa, r, 1] * n_px[mb, c, 1]
+                               + left[qa, r, 2] * n_px[mb, c, 2])
+                        if dense:
+                            reduced[ga[r], gb[c]] -= val
+                            if qb != qa:
+                                reduced[gb[c], ga[r]] -= val
+                        else:
+                            rows[used] = ga[r]
+                            cols[used] = gb[c]
+                            vals[used] = -val
+                            used += 1
+                            if qb != qa:
+                                rows[used] = gb[c]
+                                cols[used] = ga[r]
+                                vals[used] = -val
+                                used += 1
+    return used
+
+
+@njit(cache=True)
+def _nb_back_substitute(n_px, cinv, b_x, gidx, image_of, point_of, dp,
+                        dx):  # pragma: no cover - numba
+    """``dx_j = C_j (b_j - sum_m N_jp dp)``."""
+    kmax = n_px.shape[1]
+    t = b_x.copy()
+    for m in range(n_px.shape[0]):
+        g = gidx[image_of[m]]
+        j = point_of[m]
+        for r in range(kmax):
+            if g[r] < 0:
+                continue
+            d = dp[g[r]]
+            for c in range(3):
+                t[j, c] -= n_px[m, r, c] * d
+    for j in range(dx.shape[0]):
+        for i in range(3):
+            dx[j, i] = cinv[j, i, 0] * t[j, 0] + cinv[j, i, 1] * t[j, 1] + cinv[j, i, 2] * t[j, 2]
+
+
+@njit(cache=True)
+def _nb_point_cofactors(q_pp, n_px, cinv, gidx, image_of, order, start, q_xx,
+                        q_px):  # pragma: no cover - numba
+    """:meth:`NormalSystem.point_cofactors`, point by point: ``U_a = sum_b Q[i_a, i_b] N_pb``,
+    ``Q_px[a] = -U_a C_j``, ``Q_xx[j] = C_j + C_j (sum_a N_pa^T U_a) C_j``."""
+    kmax = n_px.shape[1]
+    u = np.empty((kmax, 3))
+    inner = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    for j in range(start.size - 1):
+        m0 = start[j]
+        n = start[j + 1] - m0
+        cj = cinv[j]
+        inner[:, :] = 0.0
+        for qa in range(n):
+            ma = order[m0 + qa]
+            ga = gidx[image_of[ma]]
+            u[:, :] = 0.0
+            for qb in range(n):
+                mb = order[m0 + qb]
+                gb = gidx[image_of[mb]]
+                for r in range(kmax):
+                    if ga[r] < 0:
+                        continue
+                    for c in range(kmax):
+                        if gb[c] < 0:
+                            continue
+                        q = q_pp[ga[r], gb[c]]
+                        u[r, 0] += q * n_px[mb, c, 0]
+                        u[r, 1] += q * n_px[mb, c, 1]
+                        u[r, 2] += q * n_px[mb, c, 2]
+            for r in range(kmax):
+                for c in range(3):
+                    q_px[ma, r, c] = -(u[r, 0] * cj[0, c] + u[r, 1] * cj[1, c]
+                                       + u[r, 2] * cj[2, c])
+            for i in range(3):
+                for k in range(3):
+                    acc = 0.0
+                    for r in range(kmax):
+                        acc += n_px[ma, r, i] * u[r, k]
+                    inner[i, k] += acc
+        for i in range(3):
+            for k in range(3):
+                tmp[i, k] = cj[i, 0] * inner[0, k] + cj[i, 1] * inner[1, k] + cj[i, 2] * inner[2, k]
+        for i in range(3):
+            for k in range(3):
+                q_xx[j, i, k] = cj[i, k] + (tmp[i, 0] * cj[0, k] + tmp[i, 1] * cj[1, k]
+                                            + tmp[i, 2] * cj[2, k])
+
+
+@njit(cache=True)
+def _nb_hat_blocks(q_pp, q_xx, q_px, a, b, gidx, image_of, point_of,
+                   out):  # pragma: no cover - numba
+    """:meth:`NormalSystem.hat_blocks` per measurement."""
+    kmax = a.shape[2]
+    aq = np.empty(kmax)
+    for m in range(a.shape[0]):
+        g = gidx[image_of[m]]
+        j = point_of[m]
+        for s in range(2):
+            for t in range(2):
+                acc = 0.0
+                # A Q_ii A^T
+                for c in range(kmax):
+                    aq[c] = 0.0
+                for r in range(kmax):
+                    if g[r] < 0:
+                        continue
+                    for c in range(kmax):
+                        if g[c] >= 0:
+                            aq[c] += a[m, s, r] * q_pp[g[r], g[c]]
+                for c in range(kmax):
+                    acc += aq[c] * a[m, t, c]
+                # A Q_px B^T + (B Q_xp A^T)
+                for r in range(kmax):
+                    for c in range(3):
+                        acc += a[m, s, r] * q_px[m, r, c] * b[m, t, c]
+                        acc += a[m, t, r] * q_px[m, r, c] * b[m, s, c]
+                # B Q_xx B^T
+                for r in range(3):
+                    for c in range(3):
+                        acc += b[m, s, r] * q_xx[j, r, c] * b[m, t, c]
+                out[m, s, t] = acc
+
+
+@njit(cache=True)
+def _nb_inv3(m, out, redo, ratio):  # pragma: no cover - numba
+    """Per block: scaled to a unit diagonal, its eigenvalues in closed form (trigonometric
+    solution) and the inverse by the adjugate. Blocks with a zero or non-finite diagonal, or
+    an eigenvalue ratio below ``ratio``, are flagged in ``redo``."""
+    s = np.empty((3, 3))
+    sc = np.empty(3)
+    for j in range(m.shape[0]):
+        ok = True
+        for i in range(3):
+            d = abs(m[j, i, i])
+            if not (d > 0.0 and d < np.inf):
+                ok = False
+            sc[i] = np.sqrt(d)
+        if not ok:
+            redo[j] = True
+            continue
+        for i in range(3):
+            for k in range(3):
+                s[i, k] = m[j, i, k] / (sc[i] * sc[k])
+        # eigenvalues of the symmetric s
+        p1 = s[0, 1] ** 2 + s[0, 2] ** 2 + s[1, 2] ** 2
+        q = (s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
+        p2 = (s[0, 0] - q) ** 2 + (s[1, 1] - q) ** 2 + (s[2, 2] - q) ** 2 + 2.0 * p1
+        p = np.sqrt(p2 / 6.0)
+        if p == 0.0:
+            w_min = q
+            w_max = q
+        else:
+            b00 = (s[0, 0] - q) / p
+            b11 = (s[1, 1] - q) / p
+            b22 = (s[2, 2] - q) / p
+            b01 = s[0, 1] / p
+            b02 = s[0, 2] / p
+            b12 = s[1, 2] / p
+            det_b = (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+                     + b02 * (b01 * b12 - b11 * b02))
+            r = min(1.0, max(-1.0, det_b / 2.0))
+            phi = np.arccos(r) / 3.0
+            w_max = q + 2.0 * p * np.cos(phi)
+            w_min = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+        if not (w_min >= ratio * max(w_max, 1e-300)):
+            redo[j] = True
+            continue
+        c00 = s[1, 1] * s[2, 2] - s[1, 2] * s[2, 1]
+        c01 = s[0, 2] * s[2, 1] - s[0, 1] * s[2, 2]
+        c02 = s[0, 1] * s[1, 2] - s[0, 2] * s[1, 1]
+        c11 = s[0, 0] * s[2, 2] - s[0, 2] * s[2, 0]
+        c12 = s[0, 2] * s[1, 0] - s[0, 0] * s[1, 2]
+        c22 = s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]
+        c10 = s[1, 2] * s[2, 0] - s[1, 0] * s[2, 2]
+        c20 = s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0]
+        c21 = s[0, 1] * s[2, 0] - s[0, 0] * s[2, 1]
+        det = s[0, 0] * c00 + s[0, 1] * c10 + s[0, 2] * c20
+        out[j, 0, 0] = c00 / det / (sc[0] * sc[0])
+        out[j, 0, 1] = c01 / det / (sc[0] * sc[1])
+        out[j, 0, 2] = c02 / det / (sc[0] * sc[2])
+        out[j, 1, 0] = c10 / det / (sc[1] * sc[0])
+        out[j, 1, 1] = c11 / det / (sc[1] * sc[1])
+        out[j, 1, 2] = c12 / det / (sc[1] * sc[2])
+        out[j, 2, 0] = c20 / det / (sc[2] * sc[0])
+        out[j, 2, 1] = c21 / det / (sc[2] * sc[1])
+        out[j, 2, 2] = c22 / det / (sc[2] * sc[2])
+
+
+@njit(cache=True)
+def _nb_cholesky(a, low):  # pragma: no cover - numba
+    """Lower Cholesky factor of ``a`` into ``low`` (zeroed); False if not positive definite."""
+    n = a.shape[0]
+    for j in range(n):
+        d = a[j, j]
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        if not d > 0.0:
+            return False
+        low[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            t = a[i, j]
+            for k in range(j):
+                t -= low[i, k] * low[j, k]
+            low[i, j] = t / low[j, j]
+    return True
+
+
+@njit(cache=True)
+def _nb_cho_solve(low, x):  # pragma: no cover - numba
+    """Solve ``L L^T y = x`` in place."""
+    n = low.shape[0]
+    for i in range(n):
+        t = x[i]
+        for k in range(i):
+            t -= low[i, k] * x[k]
+        x[i] = t / low[i, i]
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for k in range(i + 1, n):
+            t -= low[k, i] * x[k]
+        x[i] = t / low[i, i]

@@ -12,6 +12,7 @@ carry Gaussian pointing noise, the GCPs survey noise, and optionally blunders.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,7 @@ from geoblock.adjust.block import Block
 from geoblock.adjust.observations import GroundPoints, ImagePoints
 from geoblock.dem.grid import GridDem
 from geoblock.models.corrections import ImageCorrection
+from geoblock.models.protocol import SensorModel
 from geoblock.testing.synthetic import AffineCamera
 
 __all__ = ["SyntheticBlock", "affine_block"]
@@ -96,6 +98,7 @@ def affine_block(
     blunder_px: tuple[float, float] = (10.0, 50.0),
     seed: int = 0,
     dem_sigma_m: float = 2.0,
+    wrap: Callable[[SensorModel], SensorModel] | None = None,
 ) -> SyntheticBlock:
     """A synthetic block of affine cameras (module docstring).
 
@@ -130,6 +133,11 @@ def affine_block(
     seed : int
     dem_sigma_m : float
         The DEM's stated accuracy, metres (the DEM itself is the true terrain).
+    wrap : callable, optional
+        Applied to each on-board camera before it is wrapped in the order-1
+        ``ImageCorrection`` of ``block.models`` (e.g. a function fitting an RPC to it, to
+        make a block of RPC images). ``onboard_models`` and ``true_models`` stay the
+        affine cameras; the measurements, ground points and DEM do not depend on it.
     """
     rng = np.random.default_rng(seed)
     rows, cols = shape
@@ -244,6 +252,7 @@ def affine_block(
     ground = GroundPoints(ids_a[ground_sel], kinds_a[ground_sel], glon, glat, gh,
                           sigma_ground_m, sigma_ground_m, sigma_ground_m)
     meas = ImagePoints(m_id, np.array(m_img), row, col, sigma_px, sigma_px, m_kind)
-    models = {i: ImageCorrection(m, order=1) for i, m in onboard.items()}
+    models = {i: ImageCorrection(m if wrap is None else wrap(m), order=1)
+              for i, m in onboard.items()}
     block = Block(models, meas, ground, dem, dem_sigma_m)
     return SyntheticBlock(block, true_models, onboard, blunder, ids_a, lon_a, lat_a, h_a)
