@@ -590,16 +590,22 @@ class _Engine:
         v = s.obs - computed
         ok = status == Status.CONVERGED
         vw = np.where(ok[:, None], v / s.sigma, 0.0)
-        cost_img = float(np.sum(self.weight[:, None] * vw**2))
         dp = x - s.prior_x
-        cost_prior = float(dp @ s.prior_w @ dp)
-        dg = pts - s.g_center
-        cost_ground = float(np.einsum("ji,jik,jk->", dg, s.g_weight, dg))
         dem = self._dem_rows(lon, lat, h, pts)
-        cost_dem = float(np.nansum((dem["misclosure"] / dem["sigma"]) ** 2))
-        return {"models": models, "v": v, "vw": vw, "status": status, "ok": ok,
-                "lon": lon, "lat": lat, "h": h, "dem": dem,
-                "cost": cost_img + cost_prior + cost_ground + cost_dem}
+        ev = {"models": models, "v": v, "vw": vw, "status": status, "ok": ok,
+              "lon": lon, "lat": lat, "h": h, "dem": dem, "pts": pts,
+              "cost_fixed": float(dp @ s.prior_w @ dp)
+              + float(np.nansum((dem["misclosure"] / dem["sigma"]) ** 2))}
+        self.recost(ev)
+        return ev
+
+    def recost(self, ev: dict[str, Any]) -> None:
+        """``ev["cost"]`` again after the robust weights or the ground pseudo-observations
+        changed (no projection)."""
+        s = self.s
+        dg = ev["pts"] - s.g_center
+        ev["cost"] = (float(np.sum(self.weight[:, None] * ev["vw"] ** 2)) + ev["cost_fixed"]
+                      + float(np.einsum("ji,jik,jk->", dg, s.g_weight, dg)))
 
     def _dem_rows(self, lon, lat, h, pts) -> dict[str, np.ndarray]:
         """DEM observation rows of the TPs: gradient (J, 3), misclosure (J,) (observed 0
@@ -751,7 +757,7 @@ class _Engine:
                 s.g_center[tp] = pts[tp]
                 if it == 1:
                     s.g_weight[tp] *= (self.tp_sigma_m_first / FLOATING_TP_SIGMA_M) ** 2
-                ev = self.evaluate(x, pts)
+                self.recost(ev)
             lam = lam / 10.0 if lam > 1e-7 else 0.0
             n_obs = self._n_obs(ev)
             dof = n_obs - s.n_params - 3 * s.p_id.size
@@ -771,7 +777,7 @@ class _Engine:
                 changed = self._reweight(ev, system, robust, robust_k, threshold)
                 rounds += 1
                 if changed:
-                    ev = self.evaluate(x, pts)
+                    self.recost(ev)
                     continue
             if small:
                 converged = True
@@ -1045,7 +1051,7 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
     weight = np.full(n_meas, np.nan)
     red = np.full((n_meas, 2), np.nan)
     test = np.full(n_meas, np.nan)
-    point_rows: dict[str, dict[str, Any]] = {}
+    point_parts: list[dict[str, np.ndarray]] = []
     cost = 0.0
     dof = 0
     converged = True
@@ -1087,19 +1093,16 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
         test[s.m_sel] = st["test"] / max(1.0, sigma0_k if np.isfinite(sigma0_k) else 1.0) ** 2
         rot = _local_to_enu_rotation(s.frame, ev["lon"], ev["lat"])
         cov_enu = rot @ (st["q_xx"] * var0) @ np.swapaxes(rot, 1, 2)
-        status = np.where(ev["dem"]["dem_h"] == ev["dem"]["dem_h"], "ok", "ok").astype("<U8")
+        status = np.full(s.p_id.size, "ok", dtype="<U8")
         status[s.dem_rows & ~np.isfinite(ev["dem"]["misclosure"])] = "no-dem"
         failed = np.zeros(s.p_id.size, bool)
         failed[s.point_of[~ev["ok"]]] = True
         status[failed] = "failed"
         dem_h = (_dem_height(block.dem, ev["lon"], ev["lat"]) if block.dem is not None
                  else np.full(s.p_id.size, np.nan))
-        for j, pid in enumerate(s.p_id.tolist()):
-            if pid not in point_rows:
-                point_rows[pid] = {"kind": s.p_kind[j], "lon": ev["lon"][j], "lat": ev["lat"][j],
-                                   "h": ev["h"][j], "cov": cov_enu[j],
-                                   "images": s.n_images[j], "dem": dem_h[j],
-                                   "status": status[j]}
+        point_parts.append({"id": s.p_id, "kind": s.p_kind, "lon": ev["lon"], "lat": ev["lat"],
+                            "h": ev["h"], "cov": cov_enu, "images": s.n_images, "dem": dem_h,
+                            "status": status})
     k = sum(b.shape[0] for b in cov_blocks)
     covariance = np.zeros((k, k))
     o = 0
@@ -1117,13 +1120,14 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
     flagged = np.isfinite(test) & (test > threshold)
     ambiguous = np.zeros(n_meas, bool)
     if flagged.any():
-        ids_flagged = np.unique(meas.id[flagged])
-        in_solution = np.isfinite(weight)
-        for pid in ids_flagged.tolist():
-            rows = np.flatnonzero((meas.id == pid) & in_solution)
-            if rows.size == 2 and meas.kind[rows[0]] == "tp":
-                ambiguous[rows] = True
-                flagged[rows] = True
+        # a TP in the solution with two rays, one of them flagged: both, ambiguous
+        in_solution = np.isfinite(weight) & (meas.kind == "tp")
+        ids, point = np.unique(meas.id, return_inverse=True)
+        rays = np.bincount(point, weights=in_solution, minlength=ids.size)
+        hit = np.bincount(point, weights=flagged & in_solution, minlength=ids.size) > 0
+        pair = in_solution & (rays[point] == 2) & hit[point]
+        ambiguous[pair] = True
+        flagged[pair] = True
         notes.append(f"{int(flagged.sum())} measurement(s) flagged as blunders (test > "
                      f"{threshold:.3g}, chi-square 2 dof)")
 
@@ -1153,16 +1157,16 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
                                  meas.col[sel], block.dem, warn=False)
         else:
             notes.append("no DEM: ICTP relative accuracy not computed")
-    pids = list(point_rows)
-    pr = [point_rows[p] for p in pids]
+    # one row per point (single mode: a GCP seen by several images is taken from the first)
+    cat = {k: np.concatenate([part[k] for part in point_parts]) for k in point_parts[0]}
+    _, first = np.unique(cat["id"], return_index=True)
+    first = np.sort(first)
     points = PointResults(
-        id=np.array(pids, dtype=str), kind=np.array([r["kind"] for r in pr], dtype=str),
-        lon=np.array([r["lon"] for r in pr]), lat=np.array([r["lat"] for r in pr]),
-        h=np.array([r["h"] for r in pr]),
-        covariance=np.array([r["cov"] for r in pr]).reshape(-1, 3, 3),
-        images=np.array([r["images"] for r in pr], dtype=np.intp),
-        dem_height=np.array([r["dem"] for r in pr]),
-        status=np.array([r["status"] for r in pr], dtype=str))
+        id=cat["id"][first].astype(str), kind=cat["kind"][first].astype(str),
+        lon=cat["lon"][first], lat=cat["lat"][first], h=cat["h"][first],
+        covariance=cat["cov"][first].reshape(-1, 3, 3),
+        images=cat["images"][first].astype(np.intp), dem_height=cat["dem"][first],
+        status=cat["status"][first].astype(str))
     measurements = MeasurementResults(
         id=meas.id, image=meas.image, kind=meas.kind, row=meas.row, col=meas.col,
         v_row=v[:, 0], v_col=v[:, 1], weight=weight, redundancy_row=red[:, 0],

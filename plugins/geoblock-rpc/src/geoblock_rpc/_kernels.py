@@ -268,16 +268,28 @@ def localise_serial(row, col, h, prm, coef, tol_px, stall_px, max_iter, lon, lat
                                                   stall_px, max_iter)
 
 
+@njit(inline="always", fastmath=_FASTMATH)
+def _partials_one(lon, lat, h, prm, coef, out, i):  # pragma: no cover - numba
+    L = _wrap_dlon(lon, prm[LONG_OFF]) / prm[LONG_SCALE]
+    P = (lat - prm[LAT_OFF]) / prm[LAT_SCALE]
+    H = (h - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
+    for k in range(2):
+        _, r_l, r_p, r_h = _ratio_derivatives(coef[2 * k], coef[2 * k + 1], L, P, H)
+        scale = prm[LINE_SCALE] if k == 0 else prm[SAMP_SCALE]
+        out[i, k, 0] = r_l * scale / prm[LONG_SCALE]
+        out[i, k, 1] = r_p * scale / prm[LAT_SCALE]
+        out[i, k, 2] = r_h * scale / prm[HEIGHT_SCALE]
+
+
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
 def partials_geodetic(lon, lat, h, prm, coef, out):  # pragma: no cover - numba
     """d(row, col)/d(lon, lat, h) in pixels per degree, degree, metre: out (N, 2, 3)."""
     for i in prange(lon.shape[0]):
-        L = _wrap_dlon(lon[i], prm[LONG_OFF]) / prm[LONG_SCALE]
-        P = (lat[i] - prm[LAT_OFF]) / prm[LAT_SCALE]
-        H = (h[i] - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
-        for k in range(2):
-            _, r_l, r_p, r_h = _ratio_derivatives(coef[2 * k], coef[2 * k + 1], L, P, H)
-            scale = prm[LINE_SCALE] if k == 0 else prm[SAMP_SCALE]
-            out[i, k, 0] = r_l * scale / prm[LONG_SCALE]
-            out[i, k, 1] = r_p * scale / prm[LAT_SCALE]
-            out[i, k, 2] = r_h * scale / prm[HEIGHT_SCALE]
+        _partials_one(lon[i], lat[i], h[i], prm, coef, out, i)
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def partials_geodetic_serial(lon, lat, h, prm, coef, out):  # pragma: no cover - numba
+    """:func:`partials_geodetic` on the calling thread (small batches, worker threads)."""
+    for i in range(lon.shape[0]):
+        _partials_one(lon[i], lat[i], h[i], prm, coef, out, i)

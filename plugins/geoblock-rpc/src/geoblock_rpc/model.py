@@ -246,7 +246,9 @@ class RpcModel(SensorModelBase):
         """Analytic d(row, col)/d(lon, lat, h): (*S, 2, 3), pixels per degree and per metre."""
         shape, (x, y, z) = _flat(lon, lat, h, names=("lon", "lat", "h"))
         out = np.empty((x.size, 2, 3))
-        _kernels.partials_geodetic(x, y, z, self._prm, self._coef, out)
+        kernel = (_kernels.partials_geodetic if parallel_ok(x.size)
+                  else _kernels.partials_geodetic_serial)
+        kernel(x, y, z, self._prm, self._coef, out)
         return out.reshape(shape + (2, 3))
 
     def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
