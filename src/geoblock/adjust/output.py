@@ -110,10 +110,11 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
         lines.append(f"- {note}")
     if r.notes:
         lines.append("")
-    lines += ["## Accuracy at control and check points", "",
-              "Errors: the measured image point located at the point's surveyed height "
-              "through the adjusted model, minus the surveyed point (metres, local east E and "
-              "north N).", ""]
+    if r.check is not None and len(r.check.id):
+        lines += ["## Accuracy at control and check points", "",
+                  "Errors: the measured image point located at the point's surveyed height "
+                  "through the adjusted model, minus the surveyed point (metres, local east E "
+                  "and north N).", ""]
     for kind in ("gcp", "icp"):
         rows = r.stats_by_image(kind)
         if rows:
@@ -149,6 +150,9 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
         lines.append("")
     lines += ["## Parameters", ""]
     for image, e in r.parameters.items():
+        if not e.names:
+            lines += [f"**{image}**: no adjusted parameter (held fixed).", ""]
+            continue
         lines += [f"**{image}**", "", "| parameter | unit | a priori | sigma a priori | adjusted "
                   "| sigma |", "|---|---|---:|---:|---:|---:|"]
         for n, u, a, ps, v, s in zip(e.names, e.units, e.prior, e.prior_sigmas, e.values,
