@@ -35,6 +35,8 @@ def _centre(model):
 
 
 class TestSimulatedContract(SensorModelContract):
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}}
+
     @pytest.fixture(params=["spot5-strip3-small-true", "quickbird-small-onboard"])
     def model(self, request):
         if request.param.endswith("true"):

@@ -205,6 +205,7 @@ def test_bad_input_raises_errors_naming_the_field(table1):
 # ---------------------------------------------------------------------- conformance kit
 class TestChenLeeContract(SensorModelContract):
     check_options = {"n": 4}
+    parameter_set_options = {"mba": {"accuracy_m": 350.0}}
 
     @pytest.fixture(params=["coefficients", "mba", "mba-spot5-moved"])
     def model(self, request):
@@ -221,6 +222,7 @@ class TestChenLeeFreeCoefficients(SensorModelContract):
     """The published form with free coefficients (no a-priori sigma)."""
 
     check_options = {"n": 4}
+    parameter_set_options = {"mba": {"accuracy_m": 350.0}}
 
     @pytest.fixture
     def model(self):
