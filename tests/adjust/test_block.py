@@ -219,6 +219,12 @@ def test_image_without_points_is_refused():
         adjust(Block(models, sb.block.measurements, sb.block.ground, sb.block.dem))
 
 
+def test_block_without_control_or_tie_points_is_refused():
+    sb = affine_block((1, 2), gcps=0, icps=3, tps=0, ictps=0, seed=24)
+    with pytest.raises(TooFewPointsError, match="no GCP or TP measurement"):
+        adjust(sb.block)
+
+
 def test_too_few_gcps_for_single_mode_names_the_image_and_parameters():
     sb = affine_block((1, 1), gcps=2, icps=0, tps=0, ictps=0, seed=22)
     with pytest.raises(TooFewPointsError, match="img00.*a0"):

@@ -507,6 +507,10 @@ class _Engine:
     # ------------------------------------------------------------------ checks
     def setup_checks(self, ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images,
                      priors) -> None:
+        if sel.size == 0:
+            raise TooFewPointsError(
+                f"block: no GCP{' or TP' if len(ids) > 1 else ''} measurement in image(s) "
+                f"{', '.join(ids)}: nothing to adjust from")
         counts = np.bincount(lookup(np.array(ids), meas.image[sel]), minlength=len(ids))
         empty = [i for i, c, s in zip(ids, counts, sizes, strict=True) if c == 0 and s > 0]
         if empty:
