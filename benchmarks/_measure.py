@@ -1,11 +1,14 @@
-"""The timing and memory helper shared by the point-throughput benchmarks (bench_core,
-bench_linescan, bench_spot): best-of-N wall time after a warm-up call, and tracemalloc's peak
-of one call (numpy's allocations; not numba's or GDAL's)."""
+"""The timing and memory helpers shared by the benchmarks: best-of-N wall time after a
+warm-up call and tracemalloc's peak of one call (numpy's allocations; not numba's or GDAL's)
+for the point-throughput benchmarks (bench_core, bench_linescan, bench_spot); the process's
+resident memory and its peak, resettable, for the whole-job ones (bench_simulate,
+bench_adjust)."""
 
 from __future__ import annotations
 
 import time
 import tracemalloc
+from pathlib import Path
 
 
 def timed(func) -> float:
@@ -28,3 +31,23 @@ def measure(label: str, func, n_points: int, repeat: int = 3) -> float:
         f"peak {peak / 2**20:7.1f} MiB ({peak / max(n_points, 1):6.0f} B/pt)"
     )
     return best
+
+
+def rss_kib(field: str) -> int | None:
+    """A ``/proc/self/status`` memory field in KiB (``VmRSS``, ``VmHWM``); None elsewhere."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def reset_peak() -> bool:
+    """Reset the process's peak RSS (``VmHWM``) where Linux allows it; False otherwise."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+        return True
+    except OSError:
+        return False

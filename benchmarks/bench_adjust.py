@@ -55,6 +55,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _measure import reset_peak, rss_kib  # benchmarks/_measure.py (run as a script)
+
 GRIDS = {10: (2, 5), 30: (5, 6), 100: (10, 10), 300: (15, 20)}
 FULL = [(10, 1000), (10, 10000), (10, 100000), (100, 1000), (100, 10000), (100, 100000),
         (300, 1000), (300, 10000), (300, 100000), (30, 20000)]
@@ -64,24 +66,6 @@ SCIPY_TOL = 1e-12
 
 
 # ------------------------------------------------------------------------------ workers
-def _rss_kib(field: str) -> int | None:
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith(field + ":"):
-                return int(line.split()[1])
-    except OSError:
-        return None
-    return None
-
-
-def _reset_peak() -> bool:
-    try:
-        Path("/proc/self/clear_refs").write_text("5")
-        return True
-    except OSError:
-        return False
-
-
 def _rpc_wrapper(cache: Path):
     """``wrap`` for affine_block: an RpcModel fitted to the camera, cached on disk."""
     from geoblock_rpc.fit import fit_rpc
@@ -126,11 +110,11 @@ def _worker_geoblock(images: int, tps: int, cache: str, out: str, profile: bool)
     t_block = time.perf_counter() - t0
     # the numba kernels' first call loads them from the on-disk cache: a tiny block first
     _warm(cache)
-    reset = _reset_peak()
+    reset = reset_peak()
     t0 = time.perf_counter()
     result = adjust(sb.block)
     t_adjust = time.perf_counter() - t0
-    peak = _rss_kib("VmHWM") if reset else None
+    peak = rss_kib("VmHWM") if reset else None
     again = []
     for _ in range(2):  # the first call pays first-touch costs; report the best of 2 more
         t0 = time.perf_counter()
@@ -191,7 +175,7 @@ def _worker_scipy(images: int, tps: int, cache: str, out: str) -> dict:
 
     sb = _make_block(images, tps, cache)
     _warm(cache)
-    reset = _reset_peak()
+    reset = reset_peak()
     t0 = time.perf_counter()
     eng = _engine(sb.block)
     s = eng.s
@@ -278,7 +262,7 @@ def _worker_scipy(images: int, tps: int, cache: str, out: str) -> dict:
     sol = scipy.optimize.least_squares(fun, z0, jac=jac, method="trf",
                                        ftol=SCIPY_TOL, xtol=SCIPY_TOL, gtol=SCIPY_TOL)
     t_total = time.perf_counter() - t0
-    peak = _rss_kib("VmHWM") if reset else None
+    peak = rss_kib("VmHWM") if reset else None
     np.savez(out, x=sol.x[:k], pts=sol.x[k:].reshape(-1, 3))
     return {"time_s": t_total, "setup_s": t_setup, "peak_kib": peak, "nfev": int(sol.nfev),
             "njev": int(sol.njev or 0), "status": int(sol.status),

@@ -31,28 +31,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from _measure import reset_peak, rss_kib  # benchmarks/_measure.py (run as a script)
+
 PRESETS = ("aguilar2007-quickbird", "teo2010-spot5", "chen1993-spot1a")
 
 
 # ------------------------------------------------------------------------------ workers
-def _rss_kib(field: str) -> int | None:
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith(field + ":"):
-                return int(line.split()[1])
-    except OSError:
-        return None
-    return None
-
-
-def _reset_peak() -> bool:
-    try:
-        Path("/proc/self/clear_refs").write_text("5")
-        return True
-    except OSError:
-        return False
-
-
 def _worker_measured_dem(size_km: float) -> dict:
     from geoblock.simulate.terrain import Grid, fractal_terrain, measured_dem
 
@@ -60,13 +44,13 @@ def _worker_measured_dem(size_km: float) -> dict:
     truth = fractal_terrain(Grid.around(-2.4, 36.8, size_km * 1000.0, 4.0), (50.0, 850.0),
                             hurst=0.8, seed=1)
     t1 = time.perf_counter()
-    before = _rss_kib("VmRSS")
-    reset = _reset_peak()
+    before = rss_kib("VmRSS")
+    reset = reset_peak()
     dem = measured_dem(truth, 2.0, 0.31, seed=2)
     t2 = time.perf_counter()
     return {"truth_shape": list(truth.shape), "dem_shape": list(dem.shape),
             "truth_s": t1 - t0, "measured_dem_s": t2 - t1,
-            "rss_before_kib": before, "peak_during_kib": _rss_kib("VmHWM") if reset else None}
+            "rss_before_kib": before, "peak_during_kib": rss_kib("VmHWM") if reset else None}
 
 
 def _worker_preset(name: str, variant: str, outdir: str) -> dict:

@@ -37,9 +37,10 @@ import scipy.linalg
 from geoblock._array import broadcast_float64
 from geoblock.errors import ObservationError, SerializationError, TooFewPointsError
 from geoblock.models.base import SensorModelBase
+from geoblock.models.corrections import invert_correction
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
-from geoblock.typing import ArrayLike, Float64Array, Status
+from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = [
     "GAUSS_FACTOR",
@@ -540,27 +541,9 @@ class CollocationCorrection(SensorModelBase):
     def _uncorrect(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, ...]:
         """Model coordinates (r, c) whose corrected values are (row, col): Newton, per point."""
         out, _ = self._collocation._evaluate(row, col, gradient=False)
-        r, c = row - out[:, 0], col - out[:, 1]  # fixed-point start
-        status = np.full(row.shape, np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
-        todo = np.arange(row.size)
-        for _ in range(self.inversion_max_iterations):
-            corr, jac = self._correction(r[todo], c[todo])
-            f_r = r[todo] + corr[:, 0] - row[todo]
-            f_c = c[todo] + corr[:, 1] - col[todo]
-            det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step_r = (jac[:, 1, 1] * f_r - jac[:, 0, 1] * f_c) / det
-                step_c = (-jac[:, 1, 0] * f_r + jac[:, 0, 0] * f_c) / det
-            r[todo] -= step_r
-            c[todo] -= step_c
-            bad = ~(np.isfinite(step_r) & np.isfinite(step_c))
-            done = np.maximum(np.abs(step_r), np.abs(step_c)) <= self.inversion_tolerance_px
-            status[todo[bad]] = Status.DIVERGED
-            status[todo[done & ~bad]] = Status.CONVERGED
-            todo = todo[~done & ~bad]
-            if todo.size == 0:
-                break
-        return r, c, status
+        # fixed-point start
+        return invert_correction(self._correction, row, col, row - out[:, 0], col - out[:, 1],
+                                 self.inversion_tolerance_px, self.inversion_max_iterations)
 
     def _image_to_ground(self, row, col, h):
         r, c, status = self._uncorrect(row, col)

@@ -17,7 +17,7 @@ iteration. The wrapped model's own parameters stay fixed.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -27,7 +27,7 @@ from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array, Status
 
-__all__ = ["ImageCorrection"]
+__all__ = ["ImageCorrection", "invert_correction"]
 
 _N_TERMS = {0: 1, 1: 3, 2: 6}
 
@@ -160,27 +160,13 @@ class ImageCorrection(SensorModelBase):
 
     def _uncorrect(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, ...]:
         """Model coordinates (r, c) whose corrected values are (row, col): Newton, per point."""
-        r, c = row.copy(), col.copy()
-        status = np.full(row.shape, np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
-        todo = np.arange(row.size)
-        for _ in range(self.inversion_max_iterations):
-            dr, dc, jac = self._correction(r[todo], c[todo])
-            f_r = r[todo] + dr - row[todo]
-            f_c = c[todo] + dc - col[todo]
-            det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step_r = (jac[:, 1, 1] * f_r - jac[:, 0, 1] * f_c) / det
-                step_c = (-jac[:, 1, 0] * f_r + jac[:, 0, 0] * f_c) / det
-            r[todo] -= step_r
-            c[todo] -= step_c
-            bad = ~(np.isfinite(step_r) & np.isfinite(step_c))
-            done = np.maximum(np.abs(step_r), np.abs(step_c)) <= self.inversion_tolerance_px
-            status[todo[bad]] = Status.DIVERGED
-            status[todo[done & ~bad]] = Status.CONVERGED
-            todo = todo[~done & ~bad]
-            if todo.size == 0:
-                break
-        return r, c, status
+
+        def correction(r, c):
+            dr, dc, jac = self._correction(r, c)
+            return np.stack([dr, dc], axis=-1), jac
+
+        return invert_correction(correction, row, col, row.copy(), col.copy(),
+                                 self.inversion_tolerance_px, self.inversion_max_iterations)
 
     def _image_to_ground(self, row, col, h):
         r, c, status = self._uncorrect(row, col)
@@ -212,3 +198,54 @@ class ImageCorrection(SensorModelBase):
 
     def __repr__(self) -> str:
         return f"<ImageCorrection order {self._order} of {self._model!r}>"
+
+
+def invert_correction(
+    correction: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    row: np.ndarray, col: np.ndarray, r: np.ndarray, c: np.ndarray,
+    tolerance_px: float, max_iterations: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Invert an image-space correction ``(row, col) = (r, c) + correction(r, c)`` by Newton.
+
+    Shared by every correction layer around a model (:class:`ImageCorrection`,
+    :class:`geoblock.adjust.collocation.CollocationCorrection`).
+
+    Parameters
+    ----------
+    correction : callable
+        ``(r, c) (N,) -> (delta (N, 2), jacobian (N, 2, 2))``: the correction in pixels and
+        the Jacobian of the corrected coordinates with respect to ``(r, c)``.
+    row, col : ndarray, (N,)
+        Corrected coordinates, pixels.
+    r, c : ndarray, (N,)
+        Starting model coordinates (updated in place).
+    tolerance_px : float
+        A point converges when its Newton step is at most this many pixels.
+    max_iterations : int
+
+    Returns
+    -------
+    r, c : ndarray, (N,)
+    status : ndarray of uint8, (N,)
+        CONVERGED, DIVERGED (a singular Jacobian) or MAX_ITERATIONS per point.
+    """
+    status = np.full(row.shape, np.uint8(Status.MAX_ITERATIONS), dtype=np.uint8)
+    todo = np.arange(row.size)
+    for _ in range(max_iterations):
+        delta, jac = correction(r[todo], c[todo])
+        f_r = r[todo] + delta[:, 0] - row[todo]
+        f_c = c[todo] + delta[:, 1] - col[todo]
+        det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step_r = (jac[:, 1, 1] * f_r - jac[:, 0, 1] * f_c) / det
+            step_c = (-jac[:, 1, 0] * f_r + jac[:, 0, 0] * f_c) / det
+        r[todo] -= step_r
+        c[todo] -= step_c
+        bad = ~(np.isfinite(step_r) & np.isfinite(step_c))
+        done = np.maximum(np.abs(step_r), np.abs(step_c)) <= tolerance_px
+        status[todo[bad]] = Status.DIVERGED
+        status[todo[done & ~bad]] = Status.CONVERGED
+        todo = todo[~done & ~bad]
+        if todo.size == 0:
+            break
+    return r, c, status
