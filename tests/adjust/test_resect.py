@@ -141,3 +141,38 @@ def test_invalid_control_points_name_the_point():
         ControlPoints(["a", "a"], [1.0, 1.0], [0, 0], [0, 0], [0, 0], [0, 0])
     with pytest.raises(ObservationError, match=r"row has shape \(3,\)"):
         ControlPoints(["a", "b"], [1.0, 1.0], [0, 0], [0, 0], [0, 0, 0], [0, 0])
+
+
+def test_gcps_all_measured_at_one_pixel_are_refused(affine_camera):
+    """Issue 12 item 4: six GCPs measured at one pixel used to 'converge' (sigma0 1e-14) to a
+    model mapping the whole image onto that pixel."""
+    rng = np.random.default_rng(5)
+    good = simulate(affine_camera, 1, 6, rng)
+    one_pixel = ControlPoints(good.id, good.lon, good.lat, good.h, np.full(6, 400.0),
+                              np.full(6, 500.0))
+    with pytest.raises(SingularSystemError, match="p0.*within 1 px of one image point.*a1"):
+        resect(ImageCorrection(affine_camera, 1), one_pixel)
+    # a shift (RPCV-0) is all such points can give, and is allowed
+    assert resect(ImageCorrection(affine_camera, 0), one_pixel).converged
+
+
+def test_gcps_measured_on_one_line_are_refused_for_order_2(affine_camera):
+    rng = np.random.default_rng(6)
+    t = np.linspace(0.0, 1.0, 8)
+    good = simulate(affine_camera, 2, 8, rng)
+    on_line = ControlPoints(good.id, good.lon, good.lat, good.h, 100 + 700 * t, 100 + 900 * t)
+    with pytest.raises(SingularSystemError, match="lie on one line"):
+        resect(ImageCorrection(affine_camera, 2), on_line)
+
+
+def test_a_solution_that_collapses_the_image_is_refused(affine_camera):
+    """Measurements of a different geometry (mirrored image): the affinity 'fits' by folding
+    the image; the degenerate solution is refused instead of written."""
+    from geoblock.errors import AdjustmentError
+
+    rng = np.random.default_rng(7)
+    good = simulate(affine_camera, 1, 9, rng)
+    squeezed = ControlPoints(good.id, good.lon, good.lat, good.h, 400 + 0.01 * (good.row - 400),
+                             500 + 0.01 * (good.col - 500))
+    with pytest.raises(AdjustmentError, match="degenerate.*scales image areas"):
+        resect(ImageCorrection(affine_camera, 1), squeezed)

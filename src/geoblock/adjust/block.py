@@ -51,7 +51,13 @@ from geoblock.adjust.statistics import (
     PointErrors,
     ictp_accuracy,
 )
-from geoblock.adjust.weights import ground_covariance, prior_weight, undetermined
+from geoblock.adjust.weights import (
+    check_measured_geometry,
+    check_not_degenerate,
+    ground_covariance,
+    prior_weight,
+    undetermined,
+)
 from geoblock.errors import (
     AdjustmentError,
     ObservationError,
@@ -532,6 +538,11 @@ class _Engine:
                     f"block: image {image!r} has {counts[i]} measurement(s) ({n_obs} "
                     f"observations) for {int(free.sum())} free parameter(s) "
                     f"({', '.join(names)}); add GCPs or TPs or give them a-priori sigmas")
+            mine = sel[lookup(np.array(ids), meas.image[sel]) == i]
+            check_measured_geometry(
+                meas.id[mine], meas.row[mine], meas.col[mine],
+                [f"{image}:{models[i].parameters.names[a]}" for a in adj[i][free]],
+                f"block: image {image!r}")
 
     def _initial_tps(self, models, ids, meas, sel, point_of, tp_points):
         """Initial TP positions: each ray localised on the DEM (or at the GCPs' mean
@@ -786,6 +797,12 @@ class _Engine:
             if small:
                 converged = True
                 break
+        for i, image in enumerate(s.ids):
+            mine = np.flatnonzero(s.image_of == i)
+            if mine.size and s.adj[i].size:
+                j = s.point_of[mine]
+                check_not_degenerate(s.models[i], ev["models"][i], ev["lon"][j], ev["lat"][j],
+                                     ev["h"][j], f"{label}: image {image!r}")
         system = self.linearize(x, pts, ev)
         try:
             system.solve(0.0)
@@ -827,6 +844,20 @@ class _Engine:
             raise AdjustmentError(
                 f"block: the models cannot project {int(bad.sum())} measured point(s) "
                 f"({listed}); check their coordinates and heights against the models' domains")
+        # a GCP that projects more than an image away from its measurement through the
+        # unadjusted model is a wrong coordinate or a wrong image, not an adjustable error
+        size = np.array([max(m.shape) for m in s.models], dtype=np.float64)[s.image_of]
+        far = (s.p_kind[s.point_of] == "gcp") & (np.hypot(ev["v"][:, 0], ev["v"][:, 1]) > size)
+        if far.any():
+            meas = self.block.measurements
+            idx = s.m_sel[far]
+            listed = ", ".join(f"{p} in {i} ({d:.3g} px)" for p, i, d in zip(
+                meas.id[idx][:8].tolist(), meas.image[idx][:8].tolist(),
+                np.hypot(ev["v"][far, 0], ev["v"][far, 1])[:8].tolist(), strict=True))
+            raise ObservationError(
+                f"block: {int(far.sum())} GCP measurement(s) lie more than an image size from "
+                f"where the unadjusted model projects their ground point: {listed}; check "
+                "their ground coordinates, image ids and measurements")
 
     def statistics(self, ev, system: NormalSystem) -> dict[str, np.ndarray]:
         """Per-measurement hat blocks, redundancy and leave-one-out test statistics."""

@@ -23,7 +23,13 @@ import numpy as np
 from geoblock import coords
 from geoblock.adjust.observations import ControlPoints
 from geoblock.adjust.statistics import AccuracyStats
-from geoblock.adjust.weights import ground_covariance, prior_weight, undetermined
+from geoblock.adjust.weights import (
+    check_measured_geometry,
+    check_not_degenerate,
+    ground_covariance,
+    prior_weight,
+    undetermined,
+)
 from geoblock.errors import AdjustmentError, SingularSystemError, TooFewPointsError
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
@@ -160,9 +166,10 @@ def resect(
         message states the minimum.
     SingularSystemError
         The GCPs cannot determine some parameters (for example collinear GCPs for an affine
-        correction); ``.undetermined`` names them.
+        correction, or GCPs all measured at one pixel); ``.undetermined`` names them.
     AdjustmentError
-        No adjustable parameter, or a GCP that the model cannot project.
+        No adjustable parameter, a GCP that the model cannot project, or a degenerate
+        solution (an adjusted model that collapses the image geometry).
     """
     params = model.parameters
     adjustable = np.flatnonzero(params.adjustable)
@@ -181,6 +188,9 @@ def resect(
             "each); add GCPs or give parameters a-priori sigmas"
         )
     # prior weight on the constrained subset
+    check_measured_geometry(gcps.id, gcps.row, gcps.col,
+                            [n for n, c in zip(names, constrained, strict=True) if not c],
+                            "resect")
     prior_sqrt = _sqrt_weight(prior_weight(prior_cov))  # (K, K) with L^T L = prior_weight
     x_prior = params.values[adjustable].copy()
     x = params.values.copy()
@@ -217,6 +227,7 @@ def resect(
             converged = True
             break
     current = model.with_parameters(x)
+    check_not_degenerate(model, current, gcps.lon, gcps.lat, gcps.h, "resect")
     computed, status = current.project_with_status(gcps.lon, gcps.lat, gcps.h)
     _check_projected(status, gcps, model)
     v = observed - np.stack(computed, axis=-1)

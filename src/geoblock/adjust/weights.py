@@ -4,13 +4,15 @@ parameters and ground points, and the diagnosis of undetermined unknowns."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from geoblock import coords
 from geoblock.typing import ArrayLike
 
-__all__ = ["ground_covariance", "prior_weight", "undetermined"]
+__all__ = ["check_measured_geometry", "check_not_degenerate", "ground_covariance", "prior_weight",
+           "undetermined"]
 
 
 def prior_weight(covariance: np.ndarray) -> np.ndarray:
@@ -87,3 +89,91 @@ def undetermined(matrix: np.ndarray, names: Sequence[str], tolerance: float = 1e
     if small.any():
         involved |= np.max(np.abs(vec[:, small]), axis=1) > 0.1
     return tuple(n for n, z in zip(names, involved, strict=True) if z), int(small.sum())
+
+
+#: measured image points closer together than this (pixels) are one point for the
+#: geometry check of :func:`check_measured_geometry`
+COINCIDENT_PX = 1.0
+#: the measured image points are collinear when their spread across the line is below this
+#: fraction of their spread along it (or below :data:`COINCIDENT_PX`)
+COLLINEAR_RATIO = 1e-3
+
+
+def check_measured_geometry(ids: Sequence[str], row: ArrayLike, col: ArrayLike,
+                            free: Sequence[str], where: str) -> None:
+    """Refuse control measurements whose image geometry cannot determine ``n_free`` free
+    parameters: all at one pixel (only a shift can be determined), or on one line (an
+    affinity cannot be determined).
+
+    Parameters
+    ----------
+    ids : sequence of str, (N,)
+        Named in the message.
+    row, col : array_like, (N,)
+        Measured image coordinates, pixels.
+    free : sequence of str
+        The adjustable parameters without an a-priori sigma (named in the message and in
+        the error's ``undetermined``).
+    where : str
+        Prefix of the message (``"resect"``, ``"block: image 'x'"``).
+
+    Raises
+    ------
+    SingularSystemError
+        The measurements are coincident (and more than a shift, 2 parameters, is free) or
+        collinear (and more than 3 parameters are free).
+    """
+    from geoblock.errors import SingularSystemError
+
+    free = tuple(free)
+    n_free = len(free)
+    if n_free <= 2:
+        return
+    pts = np.stack([np.asarray(row, float), np.asarray(col, float)], axis=-1)
+    if pts.shape[0] == 0:
+        return
+    centred = pts - pts.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False) if pts.shape[0] > 1 else np.zeros(2)
+    s = np.concatenate([s, np.zeros(2 - s.size)])
+    spread = s / np.sqrt(max(pts.shape[0], 1))  # RMS distance along each principal axis
+    listed = ", ".join(str(i) for i in list(ids)[:8]) + (" ..." if len(ids) > 8 else "")
+    if spread[0] < COINCIDENT_PX:
+        raise SingularSystemError(
+            f"{where}: the {pts.shape[0]} control measurement(s) ({listed}) all lie within "
+            f"{COINCIDENT_PX:g} px of one image point: they can determine a shift, not "
+            f"parameters {', '.join(free)}; measure points spread over the image", free)
+    if n_free > 3 and (spread[1] < COLLINEAR_RATIO * spread[0] or spread[1] < COINCIDENT_PX):
+        raise SingularSystemError(
+            f"{where}: the {pts.shape[0]} control measurement(s) ({listed}) lie on one line in "
+            f"the image (spread across it {spread[1]:.3g} px): they cannot determine "
+            f"parameters {', '.join(free)}; add points off that line (an affine correction "
+            "needs three that are not collinear)", free)
+
+
+def check_not_degenerate(before: Any, after: Any, lon: ArrayLike, lat: ArrayLike,
+                         h: ArrayLike, where: str, limit: float = 5.0) -> None:
+    """Refuse an adjusted model that collapses or blows up the image geometry: the area
+    scale of its ground -> image mapping (``|det d(row, col)/d(E, N)|`` at the control
+    points) must stay within ``limit`` times the unadjusted model's.
+
+    Raises
+    ------
+    AdjustmentError
+        Naming ``where`` and the scale change (for example six GCPs all measured at one pixel,
+        which an affinity "fits" by mapping the whole image onto that pixel).
+    """
+    from geoblock.errors import AdjustmentError
+
+    def area(model: Any) -> np.ndarray:
+        rot = coords.enu_rotation(lon, lat)  # ECEF -> ENU
+        jac = model.partials_ground(lon, lat, h) @ np.swapaxes(rot, -1, -2)  # d(r,c)/d(e,n,u)
+        return np.abs(np.linalg.det(jac[..., :2]))
+
+    a0, a1 = area(before), area(after)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = float(np.nanmedian(a1 / a0))
+    if not (1.0 / limit <= ratio <= limit):
+        raise AdjustmentError(
+            f"{where}: the adjusted model is degenerate: it scales image areas by {ratio:.3g} "
+            "against the unadjusted model at the control points (the control measurements "
+            "and their ground coordinates do not describe one image geometry); check them")
