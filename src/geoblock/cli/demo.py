@@ -16,7 +16,8 @@ __all__ = ["demo"]
 @click.option("--seed", type=click.IntRange(min=0), default=None, metavar="N",
               help="Seed of every random draw (default: the preset's).")
 @click.option("--force", is_flag=True, default=False,
-              help="Write into a non-empty OUTDIR (files of the same name are replaced).")
+              help="Write into a non-empty OUTDIR that is not a previous demo's output (files "
+              "of the same name are replaced; the directory is not marked as a demo output).")
 def demo(outdir, size, seed, force) -> None:
     """geoblock's main job on built-in data: simulate, orthorectify, mosaic, report.
 
@@ -28,15 +29,27 @@ def demo(outdir, size, seed, force) -> None:
     OUTDIR/quicklook.png (the mosaic with the strips' outlines). OUTDIR defaults to
     ./geoblock-demo.
 
+    Re-running is safe: the demo writes a marker file, OUTDIR/.geoblock-demo, and a later
+    demo into a directory holding it replaces the previous demo's outputs (block/, orthos/,
+    mosaic.tif, contribution.tif, report.md, quicklook.png; other files are kept). A
+    non-empty OUTDIR without the marker is refused (exit code 2) unless --force.
+
     \b
     Examples:
       geoblock demo
       geoblock demo /tmp/demo --force
     """
-    from geoblock.cli.simulate import check_outdir
-    from geoblock.simulate.demo import run_demo
+    from pathlib import Path
 
-    path = check_outdir(outdir, force)
-    result = run_demo(path, size=size, seed=seed, progress=lambda m: click.echo(m, err=True))
+    from geoblock.simulate.demo import DemoOutdirError, run_demo
+
+    path = Path(outdir)
+    try:
+        result = run_demo(path, size=size, seed=seed, force=force,
+                          progress=lambda m: click.echo(m, err=True))
+    except DemoOutdirError as exc:  # raised before anything is written
+        hint = "" if exc.path.exists() and not exc.path.is_dir() else (
+            "; or pass --force to write into it (files of the same name are replaced)")
+        raise click.UsageError(f"{exc}{hint}") from None
     click.echo(f"report: {result.report}")
     click.echo(f"quicklook: {result.quicklook}")

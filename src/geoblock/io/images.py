@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import threading
-import time
 import uuid
 import warnings
 from collections import deque
@@ -27,6 +25,7 @@ import numpy as np
 
 from geoblock.errors import GeoblockIOError
 from geoblock.io._atomic import atomic_path
+from geoblock.io._progress import Progress as _Progress
 
 __all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
 
@@ -160,31 +159,6 @@ def _georeferencing(data: Any) -> tuple[str | None, Any]:
             c, a, b, f, d, e = (float(v) for v in str(gt).split())
             transform = Affine(a, b, c, d, e, f)
     return wkt, transform
-
-
-class _Progress:
-    """A one-line text progress bar over a known number of chunks (standard error)."""
-
-    def __init__(self, total: int, enabled: bool, width: int = 40) -> None:
-        self.total = max(int(total), 1)
-        self.done = 0
-        self.enabled = enabled
-        self.width = width
-        self.start = time.perf_counter()
-
-    def update(self, n: int = 1) -> None:
-        self.done += n
-        if self.enabled:
-            frac = min(self.done / self.total, 1.0)
-            bar = "#" * int(round(frac * self.width))
-            elapsed = time.perf_counter() - self.start
-            sys.stderr.write(f"\r[{bar:<{self.width}}] | {frac * 100:3.0f}% | {elapsed:5.1f}s")
-            sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
 
 
 def _distributed_client(scheduler: Any) -> Any:
@@ -335,7 +309,8 @@ def write_ortho(
     in_flight : int, optional
         Chunks computed ahead of the writer (bounds memory); default 2 per core.
     progress : bool
-        Show a progress bar on standard error.
+        Show a progress bar on standard error (a tqdm bar on a terminal; elsewhere only a
+        final summary line, no carriage-return frames).
     **creation_options
         More GDAL creation options.
 

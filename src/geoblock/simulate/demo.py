@@ -8,12 +8,21 @@ and writes a short report: footprints, the on-board models' accuracy at the chec
 the ICTP discrepancies between strips and a PNG quicklook of the mosaic with the strips'
 outlines. The misregistration of the on-board models shows in the mosaic at the seams; the
 block adjustment, when it comes, will remove it.
+
+Re-running into the same OUTDIR replaces the previous demo's outputs. A demo output is
+recognised by the marker file :data:`DEMO_MARKER` (``OUTDIR/.geoblock-demo``), which
+:func:`run_demo` writes first when OUTDIR is absent or empty (or already a demo output); only
+the demo's own entries (:data:`DEMO_OUTPUTS`) are removed before the new run, anything else in
+OUTDIR is left alone. A non-empty OUTDIR without the marker is refused
+(:class:`DemoOutdirError`) unless ``force=True``, which writes into it (files of the same
+name are replaced) without marking it.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,11 +33,96 @@ import numpy as np
 
 from geoblock.errors import GeoblockError
 
-__all__ = ["DEMO_SIZES", "DemoResult", "demo_scenario", "run_demo"]
+__all__ = [
+    "DEMO_MARKER",
+    "DEMO_OUTPUTS",
+    "DEMO_SIZES",
+    "DemoOutdirError",
+    "DemoResult",
+    "demo_scenario",
+    "is_demo_outdir",
+    "prepare_demo_outdir",
+    "run_demo",
+]
 
 #: Sizes of the demo: ``small`` (the default: the teo2010-spot5 small preset) and ``tiny``
 #: (200 x 200 px strips at 300 m, a 200 m DEM: a few seconds, for tests).
 DEMO_SIZES = ("small", "tiny")
+
+#: The marker file :func:`run_demo` writes first in an OUTDIR it may replace on the next run.
+DEMO_MARKER = ".geoblock-demo"
+
+#: The entries :func:`run_demo` writes in OUTDIR (besides :data:`DEMO_MARKER`): what a re-run
+#: into a demo output removes before writing anew.
+DEMO_OUTPUTS = ("block", "orthos", "mosaic.tif", "contribution.tif", "report.md",
+                "quicklook.png")
+
+_MARKER_TEXT = """\
+This directory was written by `geoblock demo`.
+The next `geoblock demo` into it replaces the demo's outputs: block/, orthos/, mosaic.tif,
+contribution.tif, report.md and quicklook.png (anything else is left alone).
+Delete this file to protect the directory from being replaced.
+"""
+
+
+class DemoOutdirError(GeoblockError):
+    """OUTDIR of the demo exists and is not a previous demo output (or is not a directory)."""
+
+    def __init__(self, message: str, path: Path) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+def is_demo_outdir(outdir: str | os.PathLike[str]) -> bool:
+    """Whether ``outdir`` is a directory written by a previous :func:`run_demo`.
+
+    True when it holds :data:`DEMO_MARKER`, or (demos made before the marker existed) when
+    all its entries are demo outputs and its ``report.md`` starts with ``# geoblock demo``.
+    """
+    path = Path(outdir)
+    if not path.is_dir() or path.is_symlink():
+        return False
+    if (path / DEMO_MARKER).is_file():
+        return True
+    names = {p.name for p in path.iterdir()}
+    if not names or not names <= set(DEMO_OUTPUTS) or "report.md" not in names:
+        return False
+    try:
+        with open(path / "report.md", encoding="utf-8") as f:
+            return f.readline().strip() == "# geoblock demo"
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
+def prepare_demo_outdir(outdir: str | os.PathLike[str], *, force: bool = False) -> bool:
+    """Make ``outdir`` ready for :func:`run_demo`; return whether to mark it as a demo output.
+
+    * absent or empty: ready (marked);
+    * a previous demo output (:func:`is_demo_outdir`): its :data:`DEMO_OUTPUTS` are removed
+      (anything else is kept), ready (marked);
+    * any other non-empty directory: :class:`DemoOutdirError` naming it, unless ``force``
+      (written into, files of the same name replaced, not marked);
+    * not a directory: :class:`DemoOutdirError`.
+    """
+    path = Path(outdir)
+    if (path.exists() or path.is_symlink()) and not path.is_dir():
+        raise DemoOutdirError(f"demo OUTDIR {str(path)!r} exists and is not a directory", path)
+    if not path.exists() or not any(path.iterdir()):
+        return True
+    if is_demo_outdir(path):
+        for name in DEMO_OUTPUTS:
+            entry = path / name
+            if entry.is_symlink() or entry.is_file():
+                entry.unlink()
+            elif entry.is_dir():
+                shutil.rmtree(entry)
+        return True
+    if force:
+        return False
+    raise DemoOutdirError(
+        f"demo OUTDIR {str(path)!r} exists, is not empty and is not the output of a previous "
+        f"geoblock demo (it has no {DEMO_MARKER} marker file); choose another OUTDIR or empty "
+        "this one", path)
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,13 +180,16 @@ def run_demo(
     seed: int | None = None,
     progress: Callable[[str], None] | None = None,
     quicklook_width: int = 1024,
+    force: bool = False,
 ) -> DemoResult:
     """Simulate, orthorectify with the on-board models, mosaic and report (module docstring).
 
     Files in ``outdir``: ``report.md``, ``quicklook.png``, ``mosaic.tif`` (feathered mosaic,
     UTM), ``contribution.tif`` (which strip each mosaic pixel came from), ``orthos/<id>.tif``
     and the simulated block in ``block/`` (see
-    :func:`~geoblock.simulate.scenario.run_scenario`).
+    :func:`~geoblock.simulate.scenario.run_scenario`), and the marker :data:`DEMO_MARKER`.
+    A previous demo's outputs in ``outdir`` are replaced; any other non-empty ``outdir`` is
+    refused unless ``force`` (:func:`prepare_demo_outdir`).
 
     Parameters
     ----------
@@ -104,6 +201,9 @@ def run_demo(
         Called with one-line messages.
     quicklook_width : int
         Largest width of the quicklook's image, pixels.
+    force : bool
+        Write into a non-empty ``outdir`` that is not a demo output (files of the same name
+        are replaced; the directory is not marked as a demo output).
 
     Returns
     -------
@@ -119,6 +219,9 @@ def run_demo(
     start = time.perf_counter()
     out = Path(outdir)
     scenario = demo_scenario(size, seed)
+    if prepare_demo_outdir(out, force=force):
+        out.mkdir(parents=True, exist_ok=True)
+        (out / DEMO_MARKER).write_text(_MARKER_TEXT, encoding="utf-8")
     say(f"[1/4] simulating {scenario.name}: {scenario.description}")
     sim = run_scenario(scenario, out / "block", progress=lambda m: say(f"      {m}"),
                        render=True)
