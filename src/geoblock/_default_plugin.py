@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from geoblock.errors import ModelFormatError, SerializationError
+from geoblock.errors import ModelFormatError, SerializationError, UnknownModelError
 from geoblock.hookspecs import hookimpl
 from geoblock.models.corrections import ImageCorrection
 
@@ -52,6 +52,8 @@ def geoblock_read_sensor_model(path, model_name, options):
         return from_dict(data)
     except SerializationError as exc:
         raise ModelFormatError(f"{path}: {exc}") from exc
+    except UnknownModelError as exc:  # the model (or a wrapped one) is not registered
+        raise UnknownModelError(f"{path}: {exc}") from exc
 
 
 @hookimpl(trylast=True)

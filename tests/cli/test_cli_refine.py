@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import json
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -126,10 +128,12 @@ def test_refine_write_reports_plugin_messages(runner, cli, model_path, points, t
     real = geoblock.io.write_model
 
     def fake(model, path, format=None, **options):
-        calls.append((format, str(path)))
+        calls.append((format, Path(path).name))
         if format == "fake-rpc":
+            Path(path).write_text("fake\n")
             warnings.warn(
-                "RPC00B approximate (refit): max error 1e-07 px", GeoblockWarning, stacklevel=2
+                f"{path}: RPC00B approximate (refit): max error 1e-07 px", GeoblockWarning,
+                stacklevel=2,
             )
             return path
         return real(model, path, format=format, **options)
@@ -141,9 +145,13 @@ def test_refine_write_reports_plugin_messages(runner, cli, model_path, points, t
                                  "--write", f"fake-rpc:{tmp_path / 'x_RPC.TXT'}",
                                  "--write", f"json:{out}"])
     assert result.exit_code == 0, result.output
-    assert calls[1:] == [("fake-rpc", str(tmp_path / "x_RPC.TXT")), ("json", str(out))]
-    assert "  RPC00B approximate (refit): max error 1e-07 px" in result.stdout
-    assert out.is_file()
+    assert calls[1:] == [("fake-rpc", "x_RPC.TXT"), ("json", out.name)]
+    # the message names the destination, not the staging file the writer was given
+    assert f"  {tmp_path / 'x_RPC.TXT'}: RPC00B approximate (refit): max error 1e-07 px" in (
+        result.stdout)
+    assert out.is_file() and (tmp_path / "x_RPC.TXT").read_text() == "fake\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "affine.json", "extra.json", "gcps.csv", "icps.csv", "main.json", "x_RPC.TXT"]
 
 
 def test_refine_write_unknown_format_is_one_error_line(runner, cli, model_path, points, tmp_path):
@@ -153,7 +161,9 @@ def test_refine_write_unknown_format_is_one_error_line(runner, cli, model_path, 
     assert result.exit_code == 1
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("Error: ") and "no-such-format" in lines[0]
-    assert (tmp_path / "m.json").is_file()  # the JSON was written before
+    assert str(tmp_path / "x.txt") in lines[0]  # the destination, not a staging path
+    assert not (tmp_path / "m.json").exists()  # every output is checked before any is written
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".geoblock-refine")]
 
 
 @pytest.mark.parametrize("args, message", [
@@ -182,3 +192,128 @@ def test_refine_help_has_example(runner, cli):
     assert result.exit_code == 0
     assert "Examples:" in result.stdout and "geoblock refine scene.json --gcps" in result.stdout
     assert "refine" in runner.invoke(cli, ["--help"]).stdout
+
+
+# ------------------------------------------------------------------ issue 12, item 11
+def test_refine_write_checks_every_format_before_writing_anything(
+        runner, cli, model_path, points, tmp_path):
+    """A failing later --write leaves no file behind: not -o, not the earlier --write."""
+    main, first = tmp_path / "main.json", tmp_path / "first.json"
+    first.write_text("keep me\n")  # an existing destination is not touched either
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
+                                 "--write", f"json:{first}",
+                                 "--write", f"rpc-txt:{tmp_path / 'x_RPC.TXT'}"])
+    assert result.exit_code == 1, result.output
+    assert "rpc-txt" in result.stderr and str(tmp_path / "x_RPC.TXT") in result.stderr
+    assert not main.exists() and first.read_text() == "keep me\n"
+    assert not (tmp_path / "x_RPC.TXT").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".geoblock-refine")]
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
+                                 "--write", f"{tmp_path / 'x.txt'}"])
+    assert result.exit_code == 1 and "cannot infer a model format" in result.stderr
+    assert not main.exists()
+
+
+def test_refine_same_output_twice_is_refused(runner, cli, model_path, points, tmp_path):
+    out = tmp_path / "m.json"
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(out),
+                                 "--write", f"json:{out}"])
+    assert result.exit_code == 2 and "requested twice" in result.stderr and not out.exists()
+
+
+def test_unknown_model_name_in_json_is_named_with_the_file(tmp_path, model_path, runner, cli):
+    from geoblock.errors import UnknownModelError
+
+    data = json.loads(Path(model_path).read_text())
+    data["model"] = "no-such-model"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(UnknownModelError) as info:
+        geoblock.open_model(bad)
+    assert "no-such-model" in str(info.value) and str(bad) in str(info.value)
+    result = runner.invoke(cli, ["refine", str(bad), "--gcps", model_path])
+    assert result.exit_code == 1
+    assert "no-such-model" in result.stderr and str(bad) in result.stderr
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """A small simulated SPOT-1 block (``geoblock simulate``'s files)."""
+    from geoblock.simulate.scenario import preset_dict, run_scenario, scenario_from_dict
+
+    out = tmp_path_factory.mktemp("sim")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run_scenario(scenario_from_dict(preset_dict("chen1993-spot1a", "small")), out,
+                     render=False)
+    return out
+
+
+def _icp_rms_px(model, ground_csv, image_csv, image_id):
+    """RMS image discrepancy (pixels) of ``model`` at the ICPs of ``image_id``."""
+    from geoblock.adjust import GroundPoints, ImagePoints
+    from geoblock.io import read_points
+
+    ground = GroundPoints.from_columns(read_points(ground_csv))
+    icps = ImagePoints.from_columns(read_points(image_csv)).control_points(
+        ground, image_id, ("icp",))
+    assert len(icps.id) >= 5
+    row, col = model.project(icps.lon, icps.lat, icps.h)
+    return float(np.sqrt(np.mean((row - icps.row) ** 2 + (col - icps.col) ** 2)))
+
+
+def test_refine_reads_the_point_files_simulate_writes(runner, cli, simulated, tmp_path):
+    ground, image = simulated / "points" / "ground.csv", simulated / "points" / "image.csv"
+    onboard = simulated / "images" / "spot1a_onboard.json"
+    out = tmp_path / "refined.json"
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
+                                 "--image", str(image), "--order", "1", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    n_gcp = sum(1 for line in ground.read_text().splitlines() if line.endswith(",gcp"))
+    n_icp = sum(1 for line in ground.read_text().splitlines() if line.endswith(",icp"))
+    assert f"image spot1a: {n_gcp} GCPs, {n_icp} ICPs" in result.stdout
+    icp_line = next(line for line in result.stdout.splitlines() if line.startswith("ICP "))
+    assert int(icp_line.split()[1]) == n_icp
+    before = _icp_rms_px(geoblock.open_model(onboard), ground, image, "spot1a")
+    after = _icp_rms_px(geoblock.open_model(out), ground, image, "spot1a")
+    assert after < 0.5 * before, (before, after)
+    # --image-id names the image explicitly: same result
+    out2 = tmp_path / "refined2.json"
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground), "--image",
+                                 str(image), "--image-id", "spot1a", "-o", str(out2)])
+    assert result.exit_code == 0, result.output
+    assert json.loads(out2.read_text()) == json.loads(out.read_text())
+
+
+def test_refine_image_file_with_several_images_needs_image_id(runner, cli, simulated, tmp_path):
+    ground, image = simulated / "points" / "ground.csv", simulated / "points" / "image.csv"
+    onboard = simulated / "images" / "spot1a_onboard.json"
+    lines = image.read_text().splitlines()
+    two = tmp_path / "image2.csv"
+    two.write_text("\n".join([*lines, *(line.replace(",spot1a,", ",spot1b,")
+                                        for line in lines[1:])]) + "\n")
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
+                                 "--image", str(two), "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 2
+    assert "spot1a, spot1b" in result.stderr and "--image-id" in result.stderr
+    assert not (tmp_path / "r.json").exists()
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
+                                 "--image", str(two), "--image-id", "spot9"])
+    assert result.exit_code == 2 and "'spot9'" in result.stderr and "spot1a, spot1b" in (
+        result.stderr)
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
+                                 "--image", str(two), "--image-id", "spot1b",
+                                 "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "r.json").is_file()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--ground", "g.csv"], "--ground and --image go together"),
+    (["--image", "i.csv"], "--ground and --image go together"),
+    (["--ground", "g.csv", "--image", "i.csv", "--gcps", "x.csv"], "not several"),
+    (["--gcps", "x.csv", "--image-id", "a"], "--image-id selects"),
+])
+def test_refine_block_file_usage_errors(runner, cli, model_path, args, message):
+    result = runner.invoke(cli, ["refine", model_path, *args])
+    assert result.exit_code == 2 and message in result.stderr, result.output

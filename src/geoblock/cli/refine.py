@@ -10,6 +10,9 @@ RPC) and their messages (a warning such as a fold/refit report) are printed with
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -59,6 +62,106 @@ def _split_kinds(path: str, sigma_px: float):
     return points.subset(~icp), (points.subset(icp) if icp.any() else None)
 
 
+def _read_block_points(ground_path: str, image_path: str, image_id: str | None,
+                       sigma_px: float):
+    """GCPs and ICPs of one image from a ground CSV and an image CSV (``geoblock simulate``'s
+    ``points/ground.csv`` and ``points/image.csv``, a block's point files)."""
+    from geoblock.adjust import GroundPoints, ImagePoints
+    from geoblock.errors import ObservationError
+    from geoblock.io import read_points
+
+    ground = GroundPoints.from_columns(read_points(ground_path), source=ground_path)
+    images = ImagePoints.from_columns(read_points(image_path), source=image_path,
+                                      sigma=sigma_px)
+    present = sorted(set(images.image.tolist()))
+    if not present:
+        raise ObservationError(f"{image_path}: no image measurements")
+    if image_id is None:
+        if len(present) > 1:
+            raise click.UsageError(
+                f"{image_path} holds measurements of {len(present)} images "
+                f"({', '.join(present)}): choose one with --image-id"
+            )
+        image_id = present[0]
+    elif image_id not in present:
+        raise click.BadParameter(
+            f"{image_id!r} has no measurement in {image_path}; its images are "
+            f"{', '.join(present)}", param_hint="--image-id"
+        )
+    try:
+        gcps = images.control_points(ground, image_id, ("gcp",))
+        icps = images.control_points(ground, image_id, ("icp",))
+    except ObservationError as exc:
+        text = str(exc).replace("image measurements", image_path, 1)
+        raise ObservationError(f"{text} (ground points: {ground_path})") from None
+    return gcps, (icps if len(icps.id) else None), image_id
+
+
+def _write_all(refined, targets: list[tuple[str | None, str]]) -> list[tuple[Path, str, list]]:
+    """Write every ``(format, path)`` of ``targets``, or none of them.
+
+    Each output is first written in a staging folder beside its destination; only when every
+    writer has succeeded are the files moved into place (a missing format, an unwritable model
+    or a failing writer leaves the destinations untouched). Returns ``(path, format label,
+    warning messages)`` per target.
+    """
+    from geoblock.errors import GeoblockError, GeoblockIOError, UnsupportedFormatError
+    from geoblock.io import write_model
+    from geoblock.io.models import _FORMATS_BY_SUFFIX
+
+    finals = [Path(path) for _, path in targets]
+    seen: dict[Path, str] = {}
+    for (fmt, path), final in zip(targets, finals, strict=True):
+        key = final.resolve()
+        if key in seen:
+            raise click.UsageError(f"{path} is requested twice (as {seen[key]} and "
+                                   f"{fmt or 'from suffix'}): give each output its own path")
+        seen[key] = fmt or "from suffix"
+        if fmt is None and final.suffix.lower() not in _FORMATS_BY_SUFFIX:
+            raise UnsupportedFormatError(
+                f"{path!r}: cannot infer a model format from the suffix {final.suffix!r}; "
+                "use FORMAT:PATH (for example rpc-txt:scene_RPC.TXT)"
+            )
+        if not final.parent.is_dir():
+            raise GeoblockIOError(
+                f"cannot write {path!r}: directory {str(final.parent)!r} does not exist"
+            )
+    staging: list[Path] = []
+    try:
+        done = []
+        for k, ((fmt, _), final) in enumerate(zip(targets, finals, strict=True)):
+            stage = Path(tempfile.mkdtemp(prefix=f".geoblock-refine-{k}-", dir=final.parent))
+            staging.append(stage)
+            staged = stage / final.name
+            if final.exists():  # writers that update a file in place (GeoTIFF tags) see it
+                shutil.copy2(final, staged)
+
+            def named(text: object, staged=staged, stage=stage, final=final) -> str:
+                """A message about the staged file, naming the destination instead."""
+                return (str(text).replace(str(staged), str(final))
+                        .replace(str(stage), str(final.parent)))
+
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    write_model(refined, staged, format=fmt)
+                except GeoblockError as exc:
+                    try:
+                        renamed = type(exc)(named(exc))
+                    except Exception:  # noqa: BLE001 - an exception class with another signature
+                        renamed = GeoblockError(named(exc))
+                    raise renamed from exc
+            messages = [" ".join(named(w.message).split()) for w in caught]
+            done.append((final, fmt or "from suffix", messages))
+        for stage, final in zip(staging, finals, strict=True):
+            for item in sorted(stage.iterdir()):  # the file and any sidecar its writer made
+                os.replace(item, final.parent / item.name)
+        return done
+    finally:
+        for stage in staging:
+            shutil.rmtree(stage, ignore_errors=True)
+
+
 def _stats_table(result) -> list[str]:
     lines = [
         "Accuracy (metres; errors = located - surveyed, along local east E and north N):",
@@ -85,6 +188,14 @@ def _stats_table(result) -> list[str]:
               help="Independent check points (same columns): accuracy only, not fitted.")
 @click.option("--points", "points_path", metavar="POINTS.csv", default=None,
               help="One file with a 'kind' column (gcp or icp) instead of --gcps/--icps.")
+@click.option("--ground", "ground_path", metavar="GROUND.csv", default=None,
+              help="Block point files instead of --gcps/--points: ground points (id, lon, lat, "
+              "h[, sigma_e, sigma_n, sigma_h], kind gcp or icp), with --image.")
+@click.option("--image", "image_path", metavar="IMAGE.csv", default=None,
+              help="Image measurements joined with --ground by id (id, image, row, col[, "
+              "sigma | sigma_row, sigma_col][, kind]), as 'geoblock simulate' writes them.")
+@click.option("--image-id", default=None, metavar="ID",
+              help="The image of --image to refine MODEL with (needed when it holds several).")
 @click.option("--order", type=click.IntRange(0, 2), default=1, show_default=True,
               help="0: shift (RPCV-0, >= 1 GCP); 1: affine (RPCV-1, >= 3 GCPs); "
               "2: quadratic (>= 6 GCPs).")
@@ -98,8 +209,8 @@ def _stats_table(result) -> list[str]:
 @click.option("--write", "writes", metavar="FORMAT:PATH", multiple=True, callback=_write_spec,
               help="Also write the refined model in FORMAT (a plugin's writer, e.g. rpc-txt); "
               "repeatable.")
-def refine(model_path, gcps_path, icps_path, points_path, order, model_name, sigma_px, output,
-           writes) -> None:
+def refine(model_path, gcps_path, icps_path, points_path, ground_path, image_path, image_id, order,
+           model_name, sigma_px, output, writes) -> None:
     """Refine MODEL with an image-space correction fitted to ground control points.
 
     MODEL (any registered sensor model) is wrapped in a polynomial correction of its image
@@ -111,25 +222,44 @@ def refine(model_path, gcps_path, icps_path, points_path, order, model_name, sig
     then writes the refined model.
 
     Point files are CSV with a header (lon, lat in degrees, h in metres above the WGS84
-    ellipsoid, row, col in pixels with 0 the centre of the first pixel).
+    ellipsoid, row, col in pixels with 0 the centre of the first pixel): --gcps/--icps, one
+    --points file with a kind column, or a block's two files --ground and --image joined by
+    point id (those 'geoblock simulate' writes in OUTDIR/points; --image-id picks the image).
+    Nothing is written unless every output (-o and each --write) can be written.
 
     \b
     Examples:
       geoblock refine scene.json --gcps gcps.csv --icps icps.csv --order 1
       geoblock refine scene_RPC.TXT --points points.csv --order 0 -o scene.rpcv0.json \\
           --write rpc-txt:scene_refined_RPC.TXT
+      geoblock refine sim/images/spot1a_onboard.json --ground sim/points/ground.csv \\
+          --image sim/points/image.csv --image-id spot1a --order 1
     """
     from geoblock.adjust import resect
-    from geoblock.io import write_model
     from geoblock.models.corrections import ImageCorrection
 
+    block = ground_path is not None or image_path is not None
     if points_path is not None and (gcps_path or icps_path):
         raise click.UsageError("give either --points or --gcps/--icps, not both")
-    if points_path is None and gcps_path is None:
-        raise click.UsageError("missing --gcps GCPS.csv (or --points with a kind column)")
+    if block and (points_path or gcps_path or icps_path):
+        raise click.UsageError("give either --ground/--image or --points or --gcps/--icps, "
+                               "not several")
+    if block and (ground_path is None or image_path is None):
+        raise click.UsageError("--ground and --image go together (ground points and image "
+                               "measurements joined by id)")
+    if image_id is not None and not block:
+        raise click.UsageError("--image-id selects an image of --image; give --ground and "
+                               "--image")
+    if points_path is None and gcps_path is None and not block:
+        raise click.UsageError("missing --gcps GCPS.csv (or --points with a kind column, or "
+                               "--ground with --image)")
 
     model = open_model_arg(model_path, model_name)
-    if points_path is not None:
+    if block:
+        gcps, icps, image_id = _read_block_points(ground_path, image_path, image_id, sigma_px)
+        click.echo(f"image {image_id}: {len(gcps.id)} GCPs, "
+                   f"{0 if icps is None else len(icps.id)} ICPs from {image_path}")
+    elif points_path is not None:
         gcps, icps = _split_kinds(points_path, sigma_px)
     else:
         gcps, _ = _read_control(gcps_path, sigma_px)
@@ -144,13 +274,7 @@ def refine(model_path, gcps_path, icps_path, points_path, order, model_name, sig
     if output is None:
         src = Path(model_path)
         output = str(src.with_name(f"{src.stem}.refined.json"))
-    written = write_model(refined, output, format="json")
-    click.echo(f"refined model written to {written} (json)")
-    for fmt, path in writes:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            written = write_model(refined, path, format=fmt)
-        click.echo(f"refined model written to {written} ({fmt or 'from suffix'})")
-        for w in caught:
-            text = " ".join(str(w.message).split())
+    for written, label, messages in _write_all(refined, [("json", output), *writes]):
+        click.echo(f"refined model written to {written} ({label})")
+        for text in messages:
             click.echo(f"  {text}")

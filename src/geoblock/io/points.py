@@ -12,7 +12,7 @@ import csv
 import io
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -58,7 +58,8 @@ def read_points(
     Raises
     ------
     PointFileError
-        A required column is missing or a value is not a number (file, line and column named).
+        A required column is missing, a column name appears twice in the header, a value is
+        not a number (file, line and column named), or the file is not UTF-8 text.
     GeoblockIOError
         The file cannot be read.
     """
@@ -68,6 +69,12 @@ def read_points(
     if not records:
         raise PointFileError(f"{name}: empty point file (a header line is required)")
     header = [h.strip() for h in records[0][1]]
+    duplicated = sorted({h for h in header if header.count(h) > 1})
+    if duplicated:
+        raise PointFileError(
+            f"{name}, line {records[0][0]}: duplicated column(s) {duplicated} in the header "
+            f"{header}; each column must appear once"
+        )
     missing = [c for c in required if c not in header]
     if missing:
         raise PointFileError(f"{name}: missing column(s) {missing}; the header has {header}")
@@ -104,14 +111,30 @@ def read_points(
 
 def _read_text(source: str | os.PathLike[str] | IO[str]) -> tuple[str, str]:
     if hasattr(source, "read"):
-        return getattr(source, "name", "<stream>"), source.read()  # type: ignore[union-attr]
+        name = str(getattr(source, "name", "<stream>"))
+        return name, _decoded(name, source.read)  # type: ignore[union-attr]
     if str(source) == "-":
-        return "<stdin>", sys.stdin.read()
+        return "<stdin>", _decoded("<stdin>", sys.stdin.read)
     path = Path(source)
     try:
-        return str(path), path.read_text(encoding="utf-8-sig")
+        data = path.read_bytes()
     except OSError as exc:
         raise GeoblockIOError(f"cannot read point file {str(path)!r}: {exc.strerror}") from exc
+    return str(path), _decoded(str(path), lambda: data.decode("utf-8-sig"))
+
+
+def _decoded(name: str, read: Callable[[], str | bytes]) -> str:
+    """The text ``read()`` gives; a decoding failure becomes a :class:`PointFileError`."""
+    try:
+        text = read()
+        if isinstance(text, bytes):
+            text = text.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise PointFileError(
+            f"{name}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
+            "save the point file as UTF-8"
+        ) from None
+    return text.removeprefix("\ufeff")
 
 
 def write_points(

@@ -92,6 +92,25 @@ def _require(md: Mapping[str, Any], keys: tuple[str, ...], path: Path, what: str
         raise ModelFormatError(f"{_src(path)}: {what} lacks {', '.join(missing)}")
 
 
+def _image_size(path: Path, rows: Any, cols: Any, fields: str) -> Shape:
+    """``(rows, cols)`` as positive integers (whole-number text such as ``"2920.0"`` too).
+
+    Raises :class:`ModelFormatError` naming the file and the ``fields`` otherwise.
+    """
+    try:
+        values = [float(str(v).strip()) if not isinstance(v, int | float) else float(v)
+                  for v in (rows, cols)]
+    except (TypeError, ValueError):
+        values = []
+    if (len(values) != 2 or not all(math.isfinite(v) and v >= 1 and v == int(v)
+                                    for v in values)):
+        raise ModelFormatError(
+            f"{_src(path)}: {fields} must be positive whole numbers of pixels, got "
+            f"{rows!r}, {cols!r}"
+        )
+    return int(values[0]), int(values[1])
+
+
 def _xml_text(elem: ET.Element | None, tag: str, path: Path, where: str) -> str:
     node = None if elem is None else elem.find(tag)
     if node is None or node.text is None or not node.text.strip():
@@ -271,18 +290,27 @@ def _parse_gdal(path: Path) -> Result | None:
 def _parse_rpc_txt(path: Path, text: str) -> Result:
     md: dict[str, Any] = {}
     coeffs: dict[str, dict[int, str]] = {k: {} for k in _POLY_KEYS}
-    for line in text.splitlines():
+    for line_no, line in enumerate(text.splitlines(), start=1):
         if ":" not in line:
             continue
         key, _, value = line.partition(":")
         key = key.strip().upper()
         value = value.strip()
         m = re.fullmatch(r"(LINE|SAMP)_(NUM|DEN)_COEFF_(\d+)", key)
+        if not (m or key in _POLY_KEYS or key in _SCALAR_KEYS or key in _OPTIONAL_KEYS):
+            continue
+        if not value:
+            if key in _OPTIONAL_KEYS:
+                continue  # an optional field without a value is an absent one
+            raise ModelFormatError(f"{_src(path)}, line {line_no}: _RPC.TXT field {key} has no "
+                                   "value")
         if m:
-            coeffs[f"{m[1]}_{m[2]}_COEFF"][int(m[3])] = value
-        elif key in _POLY_KEYS:
-            md[key] = value
-        elif key in _SCALAR_KEYS or key in _OPTIONAL_KEYS:
+            index = int(m[3])
+            if not 1 <= index <= 20:
+                raise ModelFormatError(f"{_src(path)}, line {line_no}: _RPC.TXT field {key}: "
+                                       "coefficient numbers run from 1 to 20")
+            coeffs[f"{m[1]}_{m[2]}_COEFF"][index] = value
+        else:
             md[key] = value
     for key, items in coeffs.items():
         if key in md:
@@ -323,6 +351,10 @@ def _parse_rpb(path: Path, text: str) -> Result:
         value = value.strip()
         if value.startswith("("):
             value = " ".join(v.strip() for v in value[1:-1].split(",") if v.strip())
+        if not value:
+            if gkey in _OPTIONAL_KEYS:
+                continue  # an optional field without a value is an absent one
+            raise ModelFormatError(f"{_src(path)}: RPB field {key} has no value")
         md[gkey] = value
     _require(md, _SCALAR_KEYS + _POLY_KEYS,
              path, "RPB (DigitalGlobe keys lineOffset ... sampDenCoef)")
@@ -374,11 +406,8 @@ def _parse_ossim(path: Path, text: str) -> Result:
         extra["satellite_id"] = sensor
     shape = None
     if "number_lines" in get and "number_samples" in get:
-        try:
-            shape = (int(float(get["number_lines"])), int(float(get["number_samples"])))
-        except ValueError:
-            raise ModelFormatError(f"{_src(path)}: OSSIM number_lines/number_samples are not "
-                                   "integers") from None
+        shape = _image_size(path, get["number_lines"], get["number_samples"],
+                            f"OSSIM {prefix}number_lines/{prefix}number_samples")
     return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
 
 
@@ -412,6 +441,8 @@ def _parse_json(path: Path) -> Result | None:
         fmt = "gdal-json"
     else:
         return None
+    _check_json_values(path, md, {g: k for k, g in _RPCM_KEYS.items()} if fmt == "rpcm-json"
+                       else {})
     extra: dict[str, Any] = {"format": fmt}
     for key in ("img", "acquisition_date", "sun_elevation", "sun_azimuth", "min_alt",
                 "max_alt"):
@@ -419,8 +450,37 @@ def _parse_json(path: Path) -> Result | None:
             extra[key] = data[key]
     shape = None
     if isinstance(data.get("height"), int) and isinstance(data.get("width"), int):
-        shape = (data["height"], data["width"])
+        shape = _image_size(path, data["height"], data["width"], "JSON height/width")
     return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
+
+
+def _check_json_values(path: Path, md: Mapping[str, Any], names: Mapping[str, str]) -> None:
+    """JSON values of the right type: a number (or numeric text) for a scalar, a list of
+    numbers (or whitespace-separated text) for a coefficient list; ``names`` maps the GDAL key
+    to the file's own key, for the message."""
+
+    def scalar(v: Any) -> bool:
+        if isinstance(v, bool):
+            return False
+        if isinstance(v, int):
+            return abs(v) <= 1e308  # float(v) would overflow
+        return isinstance(v, float | str)
+
+    for key, value in md.items():
+        if key in _POLY_KEYS:
+            ok = isinstance(value, str) or (isinstance(value, list)
+                                            and all(scalar(v) for v in value))
+            want = "a list of 20 numbers"
+        elif key in _SCALAR_KEYS or key in _OPTIONAL_KEYS:
+            ok = scalar(value)
+            want = "a number"
+        else:
+            continue
+        if not ok:
+            raise ModelFormatError(
+                f"{_src(path)}: JSON field {names.get(key, key)!r} must be {want}, got "
+                f"{json.dumps(value)[:80]}"
+            )
 
 
 # ---------------------------------------------------------------------------------- XML
@@ -435,10 +495,9 @@ def _parse_vrt(path: Path, root: ET.Element) -> Result:
     md = {m.get("key", "").upper(): (m.text or "") for m in md_nodes[0].findall("MDI")}
     _require(md, _SCALAR_KEYS + _POLY_KEYS, path, "VRT RPC metadata domain")
     shape = None
-    try:
-        shape = (int(root.get("rasterYSize")), int(root.get("rasterXSize")))
-    except (TypeError, ValueError):
-        pass
+    if root.get("rasterYSize") is not None or root.get("rasterXSize") is not None:
+        shape = _image_size(path, root.get("rasterYSize"), root.get("rasterXSize"),
+                            "VRT rasterYSize/rasterXSize")
     extra: dict[str, Any] = {"format": "gdal-vrt"}
     for m in root.findall("Metadata"):
         if m.get("domain", "").upper() == "IMD":
@@ -471,8 +530,8 @@ def _parse_isd(path: Path, root: ET.Element) -> Result:
         extra["satellite_id"] = satid.strip()
     shape = None
     rows, cols = root.findtext("IMD/NUMROWS"), root.findtext("IMD/NUMCOLUMNS")
-    if rows and cols:
-        shape = (int(rows), int(cols))
+    if rows is not None or cols is not None:
+        shape = _image_size(path, rows, cols, "ISD <IMD><NUMROWS>/<NUMCOLUMNS>")
     return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
 
 
@@ -492,15 +551,12 @@ def _dimap_profile(root: ET.Element) -> str:
     return (root.findtext("Metadata_Identification/METADATA_PROFILE") or "").strip()
 
 
-def _dimap_shape(root: ET.Element) -> Shape | None:
+def _dimap_shape(path: Path, root: ET.Element) -> Shape | None:
     rows, cols = root.findtext(".//Raster_Dimensions/NROWS"), root.findtext(
         ".//Raster_Dimensions/NCOLS")
-    if rows and cols:
-        try:
-            return int(rows), int(cols)
-        except ValueError:
-            return None
-    return None
+    if rows is None and cols is None:
+        return None
+    return _image_size(path, rows, cols, "DIMAP Raster_Dimensions NROWS/NCOLS")
 
 
 def _is_pneo(root: ET.Element, version: float | None) -> bool:
@@ -524,7 +580,8 @@ def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None
                 target = (path.parent / href).resolve()
                 if target.is_file():
                     rpc, shape, extra = _read_xml_file(target, _depth=1)
-                    return rpc, _dimap_shape(root) or shape, {**extra, "rpc_file": str(target)}
+                    shape = _dimap_shape(path, root) or shape
+                    return rpc, shape, {**extra, "rpc_file": str(target)}
                 raise ModelFormatError(
                     f"{_src(path)}: DIMAP document has no RPC coefficients; its "
                     f"Rational_Function_Model refers to {href!r}, which is not next to it "
@@ -570,20 +627,34 @@ def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None
     rpc = _check_box(rpc, extra)
     for tag in ("ERR_BIAS_ROW", "ERR_BIAS_COL"):
         text = inv.findtext(tag)
-        if text:
-            extra[tag.lower()] = float(text)
+        if text and text.strip():
+            try:
+                extra[tag.lower()] = float(text)
+            except ValueError:
+                raise ModelFormatError(f"{_src(path)}: {where}/{inv_tag}/{tag} is not a number: "
+                                       f"{text.strip()!r}") from None
     mission = root.findtext(".//Source_Identification//MISSION")
     if mission:
         idx = root.findtext(".//Source_Identification//MISSION_INDEX") or ""
         extra["satellite_id"] = f"{mission.strip()} {idx.strip()}".strip()
-    shape = _dimap_shape(root)
+    shape = _dimap_shape(path, root)
     if shape is None:
         d = valid.find("Direct_Model_Validity_Domain")
         if d is not None and d.findtext("LAST_ROW") and d.findtext("LAST_COL"):
-            try:
-                shape = (int(float(d.findtext("LAST_ROW"))), int(float(d.findtext("LAST_COL"))))
-            except ValueError:
-                shape = None
+            last = []
+            for tag in ("LAST_ROW", "LAST_COL"):
+                text = d.findtext(tag) or ""
+                try:
+                    value = float(text)
+                except ValueError:
+                    value = math.nan
+                if not (math.isfinite(value) and value >= 1):
+                    raise ModelFormatError(
+                        f"{_src(path)}: {where}/RFM_Validity/Direct_Model_Validity_Domain/{tag} "
+                        f"must be a positive number of pixels, got {text.strip()!r}"
+                    )
+                last.append(int(value))
+            shape = (last[0], last[1])
     return rpc, shape, extra
 
 
@@ -646,15 +717,16 @@ def _parse_phr_dimap(path: Path, root: ET.Element) -> Result:
     rpc = rpc.replace(line_off=rpc.line_off - 1.0, samp_off=rpc.samp_off - 1.0)
     extra = {"format": "dimap-phr", "offset_shift": -1.0, "profile": _dimap_profile(root)}
     rpc = _check_box(rpc, extra)
-    return rpc, _dimap_shape(root), extra
+    return rpc, _dimap_shape(path, root), extra
 
 
 def _read_xml_file(path: Path, _depth: int = 0) -> Result | None:
     try:
         root = _strip_namespaces(ET.parse(path).getroot())
-    except ET.ParseError:
+    except (ET.ParseError, LookupError, UnicodeError, ValueError) as exc:
+        # LookupError: an unknown encoding in the XML declaration
         if _name_says_rpc(path):
-            raise ModelFormatError(f"{_src(path)}: is not well-formed XML") from None
+            raise ModelFormatError(f"{_src(path)}: is not well-formed XML ({exc})") from None
         return None
     tag = root.tag
     if tag == "VRTDataset":
@@ -738,6 +810,13 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
     if result is None:
         return None
     rpc, shape, extra = result
+    for off, scale in (("line_off", "line_scale"), ("samp_off", "samp_scale")):
+        # the image extent a model without a stated shape is given (RpcModel) must exist
+        if not math.isfinite(getattr(rpc, off) + abs(getattr(rpc, scale)) + 0.5):
+            raise ModelFormatError(
+                f"{_src(path)}: {off.upper()} {getattr(rpc, off):g} and {scale.upper()} "
+                f"{getattr(rpc, scale):g} give no finite image extent"
+            )
     image = options.get("image")
     image = None if image is None else Path(image)
     crop = options.get("crop_offset")
