@@ -14,10 +14,13 @@ __all__ = [
     "DemCoverageError",
     "DemError",
     "DuplicateModelError",
+    "EmptyOutputError",
+    "EmptyOutputWarning",
     "GeoblockDeprecationWarning",
     "GeoblockError",
     "GeoblockIOError",
     "GeoblockWarning",
+    "GridError",
     "ModelFormatError",
     "NoIntersectionWarning",
     "ObservationError",
@@ -87,6 +90,28 @@ class DemCoverageError(DemError, ValueError):
     """Points fall outside the DEM (strict mode only; the default is NaN and a status)."""
 
 
+class GridError(GeoblockError, ValueError):
+    """An output grid is impossible: a non-positive or non-finite resolution, empty or inverted
+    bounds, a CRS that cannot be read, a grid larger than allowed or smaller than 2 x 2 pixels,
+    or a resolution in degrees above 1 degree. The message names the argument (or command-line
+    option) and the size the grid would have had.
+
+    Attributes
+    ----------
+    parameter : str or None
+        The argument at fault (``"resolution"``, ``"bounds"``, ``"crs"``, ``"max_pixels"``).
+    """
+
+    def __init__(self, message: str, parameter: str | None = None):
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class EmptyOutputError(GeoblockError, RuntimeError):
+    """Nothing valid was computed for an output (every pixel is nodata: the DEM does not cover
+    the scene, the bounds miss the footprint, ...); the output is not written."""
+
+
 class AdjustmentError(GeoblockError, RuntimeError):
     """An adjustment cannot be set up or solved."""
 
@@ -140,6 +165,10 @@ class OutOfBoundsWarning(GeoblockWarning):
 
 class NoIntersectionWarning(GeoblockWarning):
     """Some lines of sight missed the DEM; they are NaN in the result."""
+
+
+class EmptyOutputWarning(GeoblockWarning):
+    """An output was written although every pixel is nodata (asked for, e.g. ``--allow-empty``)."""
 
 
 class PluginWarning(GeoblockWarning):

@@ -7,6 +7,12 @@
 * ``GEOBLOCK_PLUGINS=a,b`` loads only the entry points named ``a`` and ``b`` (an empty value
   loads none); built-ins always load.
 * ``GEOBLOCK_TRACE_PLUGINS=1`` prints every hook call to standard error.
+* Factory hooks (``firstresult``: reading and writing models) are called through
+  :func:`call_firstresult`, one implementation at a time: an implementation that raises
+  anything but a :class:`~geoblock.errors.GeoblockError` is a plugin bug, skipped with a
+  :class:`~geoblock.errors.PluginWarning` naming the plugin, and the next one is asked. A
+  ``GeoblockError`` (``ModelFormatError``: "I recognised this file and it is invalid") is the
+  answer and reaches the user.
 
 Nothing is loaded at import time; :func:`get_plugin_manager` loads once and caches, and
 :func:`refresh_plugins` forgets the cache (after installing a plugin in a running session).
@@ -22,17 +28,20 @@ import sys
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import pluggy
 
 from geoblock import hookspecs
-from geoblock.errors import PluginWarning
+from geoblock.errors import GeoblockError, PluginWarning
 
 __all__ = [
     "DEFAULT_PLUGINS",
     "ENTRY_POINT_GROUP",
     "GeoblockPluginManager",
+    "HookFailure",
     "PluginInfo",
+    "call_firstresult",
     "create_plugin_manager",
     "get_plugin_manager",
     "list_plugins",
@@ -51,6 +60,96 @@ class GeoblockPluginManager(pluggy.PluginManager):
         self.add_hookspecs(hookspecs)
         #: plugin name -> (distribution, version)
         self.distributions: dict[str, tuple[str | None, str | None]] = {}
+
+    def call_firstresult(self, hook_name: str, **kwargs: Any) -> tuple[Any, list[HookFailure]]:
+        """:func:`call_firstresult` on this manager."""
+        return call_firstresult(self, hook_name, **kwargs)
+
+
+@dataclass(frozen=True)
+class HookFailure:
+    """A hook implementation that raised and was skipped by :func:`call_firstresult`."""
+
+    plugin_name: str
+    hook_name: str
+    exception: Exception
+
+    @property
+    def reason(self) -> str:
+        """``"RuntimeError: boom"``."""
+        detail = " ".join(str(self.exception).split())
+        name = type(self.exception).__name__
+        return f"{name}: {detail}" if detail else name
+
+
+def call_firstresult(
+    pm: pluggy.PluginManager, hook_name: str, **kwargs: Any
+) -> tuple[Any, list[HookFailure]]:
+    """Call a ``firstresult`` hook one implementation at a time, isolating faulty plugins.
+
+    Implementations are asked in pluggy's own order (``tryfirst`` ones first, then the last
+    registered first, ``trylast`` ones last) and the first result that is not ``None`` is
+    returned. Each implementation runs through :meth:`pluggy.PluginManager.subset_hook_caller`,
+    so hook wrappers, tracing (``GEOBLOCK_TRACE_PLUGINS``) and hook-call monitoring still apply.
+
+    The rule for exceptions:
+
+    * a :class:`~geoblock.errors.GeoblockError` (for a reader: "I recognised this file and it
+      is invalid", naming the file and the field) propagates: it is the answer, and later
+      implementations are not asked. A note naming the plugin is added to it;
+    * any other :class:`Exception` is a bug of that plugin: it is skipped with a
+      :class:`~geoblock.errors.PluginWarning` naming the plugin, its distribution and the
+      exception, and the next implementation is asked;
+    * ``KeyboardInterrupt``, ``SystemExit`` and other non-``Exception`` errors propagate.
+
+    Parameters
+    ----------
+    pm : pluggy.PluginManager
+    hook_name : str
+        A ``firstresult`` hook, e.g. ``"geoblock_read_sensor_model"``.
+    **kwargs
+        The hook's arguments.
+
+    Returns
+    -------
+    result : object or None
+        The first non-``None`` result, or ``None`` when no implementation gave one.
+    failures : list of HookFailure
+        The implementations that raised and were skipped (already warned about), so that a
+        "nobody could do it" error can name them.
+    """
+    caller = getattr(pm.hook, hook_name)
+    impls = caller.get_hookimpls()
+    answering = [i for i in impls if not (i.hookwrapper or getattr(i, "wrapper", False))]
+    failures: list[HookFailure] = []
+    asked: list[object] = []
+    for impl in reversed(answering):  # the order pluggy's own _multicall uses
+        if any(impl.plugin is plugin for plugin in asked):
+            continue  # a plugin with several implementations of the hook: asked once, in full
+        asked.append(impl.plugin)
+        others = [i.plugin for i in answering if i.plugin is not impl.plugin]
+        single = pm.subset_hook_caller(hook_name, remove_plugins=others)
+        try:
+            result = single(**kwargs)
+        except GeoblockError as exc:
+            if impl.plugin_name not in DEFAULT_PLUGINS:
+                exc.add_note(f"(raised by geoblock plugin {impl.plugin_name!r}, {hook_name})")
+            raise
+        except Exception as exc:  # a bug of third-party code must not break geoblock
+            failure = HookFailure(impl.plugin_name, hook_name, exc)
+            failures.append(failure)
+            dist, version = plugin_distribution(pm, impl.plugin_name)
+            origin = f", distribution {dist!r} {version}" if dist else ""
+            warnings.warn(
+                f"geoblock plugin {impl.plugin_name!r}{origin} failed in {hook_name} and was "
+                f"skipped: {failure.reason}",
+                PluginWarning,
+                stacklevel=3,
+            )
+            continue
+        if result is not None:
+            return result, failures
+    return None, failures
 
 
 @dataclass(frozen=True)

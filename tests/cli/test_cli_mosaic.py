@@ -69,3 +69,66 @@ def test_crs_mismatch(runner, cli, tmp_path):
     assert result.exit_code == 1
     assert "Error:" in result.output and "CRS" in result.output
     assert not out.exists()
+
+
+def test_chunks_zero_is_a_usage_error(runner, cli, tmp_path):
+    a = _ortho(tmp_path / "a.tif", 0, 0, 100)
+    result = runner.invoke(cli, ["mosaic", str(tmp_path / "m.tif"), a, "--chunks", "0"])
+    assert result.exit_code == 2 and "--chunks" in result.output
+    assert "ValueError" not in result.output
+
+
+def _raw_image(path, shape, value):
+    import warnings
+
+    data = np.full((1,) + shape, value, np.uint8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path, "w", driver="GTiff", width=shape[1], height=shape[0], count=1,
+                           dtype="uint8") as ds:
+            ds.write(data)
+    return str(path)
+
+
+def test_default_orthos_mosaic(runner, cli, tmp_path):
+    """Item 10: 'geoblock ortho', 'geoblock ortho', 'geoblock mosaic' with default options.
+
+    Two scenes of one 2 m camera, overlapping, 100 m apart: their exact GSDs differ in the
+    last digits (UTM scale factor, Earth curvature), so orthos at the exact GSD cannot be
+    mosaicked; the default grid (GSD rounded to a nice number, aligned to its multiples) can.
+    """
+    import geoblock
+    from geoblock.testing.synthetic import AffineCamera
+
+    shape = (60, 80)
+    coefficients = [[(shape[0] - 1) / 2, 0.0, -0.5, 0.05], [(shape[1] - 1) / 2, 0.5, 0.0, -0.02]]
+    orthos = []
+    for name, lon, value in (("a", 7.0500, 100), ("b", 7.0513, 200)):
+        model = AffineCamera(shape, (lon, 43.70, 100.0), coefficients, (-500.0, 3000.0))
+        model_path = str(geoblock.write_model(model, tmp_path / f"{name}.json"))
+        image = _raw_image(tmp_path / f"{name}.tif", shape, value)
+        out = tmp_path / f"{name}_ortho.tif"
+        result = runner.invoke(cli, ["ortho", image, str(out), "--dem", "const:150",
+                                     "--model", model_path, "--no-progress"])
+        assert result.exit_code == 0, result.output
+        orthos.append(str(out))
+    out = tmp_path / "mosaic.tif"
+    result = runner.invoke(cli, ["mosaic", str(out), *orthos, "--no-progress"])
+    assert result.exit_code == 0, result.output
+    with rasterio.open(orthos[0]) as a, rasterio.open(orthos[1]) as b:
+        assert a.transform.a == b.transform.a == 2.0  # the 2 m GSD, rounded
+        assert a.transform.c % 2.0 == 0 and b.transform.f % 2.0 == 0  # aligned
+    with rasterio.open(out) as ds:
+        assert ds.transform.a == 2.0
+        values = set(np.unique(ds.read(1)).tolist())
+    assert {100, 200} <= values
+
+
+def test_empty_mosaic_fails_unless_allowed(runner, cli, tmp_path):
+    a = _ortho(tmp_path / "a.tif", 0, 0, 0)  # every pixel nodata (0)
+    out = tmp_path / "mosaic.tif"
+    result = runner.invoke(cli, ["mosaic", str(out), a, "--no-progress"])
+    assert result.exit_code == 1 and "no valid pixel" in result.output
+    assert not out.exists()
+    result = runner.invoke(cli, ["mosaic", str(out), a, "--no-progress", "--allow-empty"])
+    assert result.exit_code == 0 and "Warning:" in result.output and out.exists()

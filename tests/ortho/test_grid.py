@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from geoblock import coords
 from geoblock.dem import ConstantDem
+from geoblock.errors import GridError
 from geoblock.ortho.grid import OutputGrid
 from geoblock.testing.synthetic import AffineCamera
 
@@ -253,3 +254,63 @@ def test_for_model_uses_dem_height_range():
         xmin, ymin, xmax, ymax = tall.bounds
         assert x.min() >= xmin and x.max() <= xmax and y.min() >= ymin and y.max() <= ymax
     assert tall.shape[0] > flat.shape[0] and tall.shape[1] > flat.shape[1]
+
+
+# ---------------------------------------------------------------------- issue 12, items 2 and 10
+def test_nice_resolution():
+    from geoblock.ortho.grid import nice_resolution
+
+    cases = {1.99987: 2.0, 2.0: 2.0, 2.03: 2.0, 2.5: 2.5, 2.49: 2.5, 0.31: 0.25, 0.5: 0.5,
+             0.7: 0.5, 0.72: 1.0, 1.5: 2.0, 9.7: 10.0, 30.0: 25.0, 1.8e-5: 2e-5, 4e-6: 5e-6}
+    for value, nice in cases.items():
+        assert nice_resolution(value) == nice, value
+    assert nice_resolution(0.2) == float("2e-1")
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(GridError):
+            nice_resolution(bad)
+
+
+def test_for_model_rounds_and_aligns_the_default_resolution():
+    """Two scenes of one sensor get one resolution and one pixel phase: they mosaic."""
+    grids = []
+    for lon in (7.05, 7.0513, 7.2):
+        model = AffineCamera((60, 80), (lon, 43.70, 100.0),
+                             [[29.5, 0.0, -0.5, 0.05], [39.5, 0.5, 0.0, -0.02]],
+                             (-500.0, 3000.0))
+        grids.append(OutputGrid.for_model(model, ConstantDem(150.0)))
+    for g in grids:
+        assert g.resolution == (2.0, 2.0)
+        assert g.transform.c % 2.0 == 0.0 and g.transform.f % 2.0 == 0.0
+    # an explicit resolution is kept as given
+    g = OutputGrid.for_model(AffineCamera.example((60, 80)), 150.0, resolution=1.99987)
+    assert g.resolution == (1.99987, 1.99987)
+
+
+def test_check_refuses_impossible_grids():
+    model = AffineCamera.example((60, 80))
+    with pytest.raises(GridError, match=r"resolution 1e-06 .* pixels .*max_pixels") as info:
+        OutputGrid.for_model(model, 150.0, resolution=1e-6)  # 10^16 pixels: refused at once
+    assert info.value.parameter == "resolution" and isinstance(info.value, ValueError)
+    with pytest.raises(GridError, match=r"geographic.*degree"):
+        OutputGrid.for_model(model, 150.0, crs="EPSG:4326", resolution=1000.0)
+    with pytest.raises(GridError, match=r"1 x 1 pixels: fewer than 2 x 2"):
+        OutputGrid.for_model(model, 150.0, resolution=1000.0)
+    with pytest.raises(GridError, match=r"more than max_pixels = 100"):
+        OutputGrid.for_model(model, 150.0, max_pixels=100)
+    huge = OutputGrid.from_bounds("EPSG:32632", (0.0, 0.0, 3e6, 10.0), 0.001)  # gdalwarp's
+    assert huge.shape == (10000, 3_000_000_000)
+    with pytest.raises(GridError, match=r"2\*\*31 - 1"):
+        huge.check()
+    with pytest.raises(GridError, match=r"--res 0\.001 over --bounds"):
+        huge.check(names={"resolution": "--res", "bounds": "--bounds"})
+    # unchecked on request; a reasonable geographic grid passes
+    assert OutputGrid.for_model(model, 150.0, resolution=1000.0, max_pixels=None).shape == (1, 1)
+    geo = OutputGrid.for_model(model, 150.0, crs="EPSG:4326")
+    assert geo.check() is geo and geo.resolution[0] in (1e-5, 2e-5, 2.5e-5, 5e-5)
+    # invalid arguments are GridErrors (still ValueErrors) naming the argument
+    with pytest.raises(GridError) as info:
+        OutputGrid.from_bounds("EPSG:32632", (1.0, 1.0, 0.0, 0.0), 1.0)
+    assert info.value.parameter == "bounds"
+    with pytest.raises(GridError) as info:
+        OutputGrid.from_bounds("EPSG:32632", (0.0, 0.0, 1.0, 1.0), 0.0)
+    assert info.value.parameter == "resolution"

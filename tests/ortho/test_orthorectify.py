@@ -211,3 +211,36 @@ def test_write_ortho_is_atomic(scene, tmp_path):
         write_ortho(broken, target, scheduler="synchronous", in_flight=2)
     assert target.read_bytes() == b"previous"
     assert list(tmp_path.iterdir()) == [target]
+
+
+def test_write_ortho_refuses_empty_outputs(scene, tmp_path):
+    """Issue 12 item 2: an ortho with no valid pixel is an error (nothing written), a warning
+    on request; one valid pixel is enough."""
+    from geoblock.errors import EmptyOutputError, EmptyOutputWarning
+
+    path, model, dem, grid = scene
+    far = OutputGrid.from_bounds(grid.crs, (0.0, 0.0, 500.0, 400.0), 5.0)  # misses the scene
+    out = orthorectify(path, model, dem, far, chunks=64)
+    target = tmp_path / "ortho.tif"
+    with pytest.raises(EmptyOutputError, match="no valid pixel"):
+        write_ortho(out, target, scheduler="synchronous")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.warns(EmptyOutputWarning, match="no valid pixel"):
+        write_ortho(out, target, scheduler="synchronous", empty="warn")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_ortho(out, tmp_path / "quiet.tif", empty="ignore")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ortho.tif", "quiet.tif"]
+    # float NaN nodata, and a single valid pixel
+    ref = {"spatial_ref": out.coords["spatial_ref"]}
+    data = xr.DataArray(np.full((1, 4, 5), np.nan, np.float32), dims=("band", "y", "x"),
+                        coords=ref, attrs={"_FillValue": np.nan})
+    with pytest.raises(EmptyOutputError):
+        write_ortho(data, tmp_path / "nan.tif")
+    data[0, 3, 4] = 7.0
+    write_ortho(data, tmp_path / "nan.tif")
+    # integers without nodata: every pixel is valid
+    zeros = xr.DataArray(np.zeros((1, 4, 5), np.uint8), dims=("band", "y", "x"), coords=ref)
+    write_ortho(zeros, tmp_path / "zeros.tif")
+    with pytest.raises(ValueError, match="empty"):
+        write_ortho(zeros, tmp_path / "bad.tif", empty="maybe")

@@ -14,14 +14,21 @@
   ``Error: <message>`` line on standard error and exit code 1; ``--verbose`` prints the
   traceback first. click's usage errors keep click's behaviour (exit code 2).
 * Warnings are printed as one ``Warning: <message>`` line each; ``--quiet`` drops geoblock's.
+* :func:`main` handles ``SIGTERM`` (what ``timeout``, ``kill`` and batch schedulers send) like
+  ``Ctrl-C``: the signal raises :class:`Terminated` (a ``KeyboardInterrupt``) in the main
+  thread, so every ``finally`` and context manager runs and removes its temporary files;
+  ``Aborted!`` is printed and the exit code is 143 (128 + SIGTERM).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import signal
+import threading
 import traceback
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import click
@@ -35,7 +42,7 @@ from geoblock.errors import (
     PluginWarning,
 )
 
-__all__ = ["BrokenCommand", "GeoblockGroup", "build_cli", "cli", "main"]
+__all__ = ["BrokenCommand", "GeoblockGroup", "Terminated", "build_cli", "cli", "main"]
 
 _GEOBLOCK_WARNINGS = (GeoblockWarning, GeoblockDeprecationWarning)
 
@@ -299,6 +306,79 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
 cli = build_cli()
 
 
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread when :func:`main` receives ``SIGTERM``.
+
+    A ``KeyboardInterrupt``, so that everything which cleans up after ``Ctrl-C`` (``finally``
+    blocks, :func:`geoblock.io._atomic.atomic_path`, ``write_ortho``'s temporaries, dask's
+    schedulers) does the same after ``SIGTERM``.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _SignalState:
+    received: int | None = None
+
+
+def _exit_code(signum: int) -> int:
+    return 128 + signum
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt() -> Iterator[_SignalState]:
+    """While inside, ``SIGTERM`` raises :class:`Terminated` in the main thread.
+
+    Nothing is installed outside the main thread or where ``SIGTERM`` is ignored (the caller
+    asked for it). A second ``SIGTERM`` during the clean-up is ignored, so that the clean-up
+    completes (a scheduler's later ``SIGKILL`` still ends the process). The previous handler
+    is restored on leaving.
+    """
+    state = _SignalState()
+    sigterm = getattr(signal, "SIGTERM", None)
+    if sigterm is None or threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+    previous = signal.getsignal(sigterm)
+    if previous is signal.SIG_IGN:
+        yield state
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if state.received is not None:
+            return  # already unwinding
+        state.received = signum
+        raise Terminated(signum)
+
+    try:
+        signal.signal(sigterm, handler)
+    except (ValueError, OSError):  # not allowed here (an embedding interpreter)
+        yield state
+        return
+    try:
+        yield state
+    finally:
+        signal.signal(sigterm, previous if previous is not None else signal.SIG_DFL)
+
+
 def main(args: Sequence[str] | None = None) -> Any:
-    """Console-script entry point: ``geoblock [OPTIONS] COMMAND [ARGS]...``."""
-    return build_cli().main(args=args, prog_name="geoblock")
+    """Console-script entry point: ``geoblock [OPTIONS] COMMAND [ARGS]...``.
+
+    ``SIGTERM`` is handled like ``Ctrl-C`` (temporary files are removed, ``Aborted!``), with
+    the exit code 143.
+    """
+    with _terminate_as_interrupt() as state:
+        try:
+            return build_cli().main(args=args, prog_name="geoblock")
+        except SystemExit:
+            if state.received is not None:  # click turned Terminated into Abort, exit 1
+                raise SystemExit(_exit_code(state.received)) from None
+            raise
+        except KeyboardInterrupt:
+            if state.received is None:
+                raise
+            # the signal came outside click's main (while building the command line)
+            click.echo("Aborted!", err=True)
+            raise SystemExit(_exit_code(state.received)) from None

@@ -21,22 +21,27 @@ __all__ = ["mosaic"]
               "pixel came from (0: none), uint8.")
 @click.option("--nodata", type=float, default=None,
               help="Output nodata; default the first ORTHO's nodata (else 0, NaN for floats).")
-@click.option("--chunks", type=int, default=1024, show_default=True, metavar="N",
-              help="Chunk side, pixels (does not change the result).")
+@click.option("--chunks", type=click.IntRange(min=1), default=1024, show_default=True,
+              metavar="N", help="Chunk side, pixels (does not change the result).")
+@click.option("--allow-empty", is_flag=True, default=False,
+              help="Write OUT with a warning when no pixel is valid; by default that is an "
+              "error and nothing is written.")
 @click.option("--scheduler", type=click.Choice(["threads", "processes", "synchronous"]),
               default="threads", show_default=True, help="dask scheduler.")
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
-def mosaic(output, orthos, method, feather_px, contribution_path, nodata, chunks, scheduler,
-           cog, progress) -> None:
+def mosaic(output, orthos, method, feather_px, contribution_path, nodata, chunks, allow_empty,
+           scheduler, cog, progress) -> None:
     """Mosaic the ORTHO GeoTIFFs (in priority order) onto their union grid and write OUT.
 
     The orthos must share CRS, resolution and pixel phase (nothing is reprojected or
-    resampled) and their number of bands. With --method priority the first ORTHO with a valid
-    pixel wins; with --method feather overlaps are blended, each ortho weighted by the distance
-    (pixels, capped at --feather) to its nearest nodata pixel. OUT (and CONTRIB.tif) are
-    written under a temporary name and renamed at the end: a failed run leaves nothing there.
+    resampled) and their number of bands: 'geoblock ortho' with its default grid (or the
+    same --crs and --res) gives such orthos for images of one sensor. With --method priority
+    the first ORTHO with a valid pixel wins; with --method feather overlaps are blended, each
+    ortho weighted by the distance (pixels, capped at --feather) to its nearest nodata pixel.
+    OUT (and CONTRIB.tif) are written under a temporary name and renamed at the end: a failed
+    run, or one without any valid pixel (unless --allow-empty), leaves nothing there.
 
     \b
     Examples:
@@ -52,10 +57,12 @@ def mosaic(output, orthos, method, feather_px, contribution_path, nodata, chunks
     result = make_mosaic(sources, method=method, feather_px=feather_px, nodata=nodata,
                          chunks=chunks)
     driver = "COG" if cog else "GTiff"
-    write_ortho(result["mosaic"], output, driver=driver, scheduler=scheduler, progress=progress)
-    if contribution_path is not None:
+    empty = "warn" if allow_empty else "error"
+    write_ortho(result["mosaic"], output, driver=driver, scheduler=scheduler, progress=progress,
+                empty=empty)
+    if contribution_path is not None:  # all 0 exactly when the mosaic is empty
         write_ortho(result["contribution"].expand_dims(band=[1]), contribution_path,
-                    driver=driver, scheduler=scheduler, progress=progress)
+                    driver=driver, scheduler=scheduler, progress=progress, empty="ignore")
     rows, cols = result.sizes["y"], result.sizes["x"]
     click.echo(f"{output}: {rows} x {cols} px, {result.sizes['band']} band(s) from "
                f"{len(orthos)} orthos ({method})", err=True)

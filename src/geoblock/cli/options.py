@@ -7,19 +7,24 @@ reader as one ``Error:`` line (exit code 1), not by click.
 
 from __future__ import annotations
 
+import math
 import sys
 from typing import Any
 
 import click
 
 __all__ = [
+    "bounds_value",
+    "crs_value",
     "json_opt",
     "model_arg",
     "model_name_opt",
+    "nonnegative_float",
     "open_model_arg",
     "output_opt",
     "points_arg",
     "points_source",
+    "positive_float",
 ]
 
 #: ``MODEL``: sensor-model metadata or geoblock model JSON, read by :func:`geoblock.open_model`.
@@ -78,3 +83,47 @@ def open_model_arg(model_path: str, model_name: str | None, **options: Any):
     from geoblock.io import open_model
 
     return open_model(model_path, model=model_name, **options)
+
+
+# ---------------------------------------------------------------------- option checks
+# click callbacks: a bad value becomes click's one-line usage error naming the option (exit 2)
+def positive_float(ctx: click.Context, param: click.Parameter, value: float | None):
+    """A float option that must be positive and finite (None passes)."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise click.BadParameter(f"{value!r} is not a positive finite number.", ctx, param)
+    return value
+
+
+def nonnegative_float(ctx: click.Context, param: click.Parameter, value: float | None):
+    """A float option that must be finite and >= 0 (None passes)."""
+    if value is not None and not (math.isfinite(value) and value >= 0):
+        raise click.BadParameter(f"{value!r} is not a finite number >= 0.", ctx, param)
+    return value
+
+
+def crs_value(ctx: click.Context, param: click.Parameter, value: str | None):
+    """A CRS option (EPSG code, WKT, PROJ string) read by pyproj; a ``pyproj.CRS`` or None."""
+    if value is None:
+        return None
+    import pyproj
+
+    try:
+        return pyproj.CRS.from_user_input(value)
+    except pyproj.exceptions.CRSError as exc:
+        detail = " ".join(str(exc).split())
+        raise click.BadParameter(f"{value!r} is not a CRS pyproj knows ({detail}).", ctx,
+                                 param) from exc
+
+
+def bounds_value(ctx: click.Context, param: click.Parameter, value: tuple | None):
+    """``XMIN YMIN XMAX YMAX``: finite, ``xmin < xmax`` and ``ymin < ymax`` (None/() passes)."""
+    if not value:
+        return None
+    xmin, ymin, xmax, ymax = value
+    if not all(math.isfinite(v) for v in value):
+        raise click.BadParameter(f"{' '.join(f'{v:g}' for v in value)}: not finite.", ctx, param)
+    if not (xmin < xmax and ymin < ymax):
+        raise click.BadParameter(
+            f"{' '.join(f'{v:g}' for v in value)}: need XMIN < XMAX and YMIN < YMAX "
+            "(the order is XMIN YMIN XMAX YMAX).", ctx, param)
+    return tuple(float(v) for v in value)

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import click
 
+from geoblock.cli.options import bounds_value, crs_value, nonnegative_float, positive_float
+
+#: geoblock.ortho.grid.MAX_PIXELS, without importing numpy/pyproj when the CLI starts
+MAX_PIXELS = 2**36
+
 __all__ = ["ortho"]
 
 
@@ -20,18 +25,31 @@ __all__ = ["ortho"]
 @click.option("--model", "model_file", metavar="MODEL_FILE", default=None,
               help="Sensor-model file (RPB, _RPC.TXT, DIMAP, model JSON, ...); default: the "
               "model stored in IMAGE (e.g. its GeoTIFF RPC tags).")
-@click.option("--crs", metavar="CRS", default=None,
+@click.option("--crs", metavar="CRS", default=None, callback=crs_value,
               help="Output CRS (EPSG:32631, WKT, PROJ string); default the scene's UTM zone.")
 @click.option("--res", "resolution", type=float, metavar="METRES", default=None,
-              help="Output pixel size, CRS units; default the image's ground sample distance.")
+              callback=positive_float,
+              help="Output pixel size, CRS units; default the image's ground sample distance "
+              "rounded to 1, 2, 2.5 or 5 x 10^k, on a grid aligned to multiples of it (orthos "
+              "of one sensor then mosaic together).")
 @click.option("--bounds", type=float, nargs=4, metavar="XMIN YMIN XMAX YMAX", default=None,
+              callback=bounds_value,
               help="Output extent, CRS units (gdalwarp -te); default the footprint on the DEM.")
 @click.option("--resampling", type=click.Choice(["nearest", "bilinear", "bicubic", "sinc"]),
               default="bilinear", show_default=True, help="Resampling kernel.")
 @click.option("--tolerance", type=float, default=0.01, show_default=True, metavar="PX",
+              callback=nonnegative_float,
               help="Largest lattice interpolation error, source pixels (0: exact per pixel).")
-@click.option("--chunks", type=int, default=1024, show_default=True, metavar="N",
-              help="Output chunk side, pixels (does not change the result).")
+@click.option("--chunks", type=click.IntRange(min=1), default=1024, show_default=True,
+              metavar="N", help="Output chunk side, pixels (does not change the result).")
+@click.option("--max-pixels", type=click.IntRange(min=1), default=MAX_PIXELS, show_default=True,
+              metavar="N", envvar="GEOBLOCK_MAX_PIXELS",
+              help="Refuse output grids of more than N pixels (rows x cols) before computing "
+              "anything (env GEOBLOCK_MAX_PIXELS).")
+@click.option("--allow-empty", is_flag=True, default=False,
+              help="Write OUT with a warning when no pixel is valid (DEM not covering the "
+              "scene, --bounds missing the footprint); by default that is an error and "
+              "nothing is written.")
 @click.option("--scheduler", default="threads", show_default=True,
               metavar="threads|processes|ADDRESS",
               help="dask scheduler: local threads, local processes, or the address of a "
@@ -40,15 +58,21 @@ __all__ = ["ortho"]
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
 def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resolution, bounds,
-          resampling, tolerance, chunks, scheduler, cog, progress) -> None:
+          resampling, tolerance, chunks, max_pixels, allow_empty, scheduler, cog,
+          progress) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
 
     Every output pixel centre goes to the ground, takes its height from DEM (ellipsoidal;
     --dem-vertical/--geoid convert geoid heights) and is projected into IMAGE by its sensor
     model, within --tolerance source pixels of the exact projection; the image is resampled
     there. For the same --crs, --res and --bounds the output grid is gdalwarp's
-    '-t_srs CRS -tr RES RES -te XMIN YMIN XMAX YMAX' grid. OUT is written under a temporary
-    name and renamed at the end: a failed run leaves nothing under OUT.
+    '-t_srs CRS -tr RES RES -te XMIN YMIN XMAX YMAX' grid. The default grid (the scene's UTM
+    zone, its GSD rounded to 1, 2, 2.5 or 5 x 10^k, aligned to multiples of it) is the same
+    for every image of one sensor, so their orthos mosaic together. Impossible grids (more
+    than --max-pixels, fewer than 2 x 2 pixels, pixels over 1 degree) are refused before
+    anything is computed. OUT is written under a temporary name and renamed at the end: a
+    failed run leaves nothing under OUT, and a run that produced no valid pixel fails
+    (unless --allow-empty).
 
     \b
     Examples:
@@ -56,6 +80,7 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resol
       geoblock ortho scene.tif ortho.tif --dem dem.tif --model scene_RPC.TXT \\
           --crs EPSG:32632 --res 0.5 --resampling bicubic --scheduler processes
     """
+    from geoblock.errors import EmptyOutputError
     from geoblock.io import open_dem, open_model
     from geoblock.io.images import open_image, write_ortho
     from geoblock.ortho import OutputGrid, orthorectify
@@ -68,16 +93,59 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resol
     else:
         grid = OutputGrid.for_model(model, dem, crs=crs, resolution=resolution,
                                     bounds=tuple(bounds) if bounds else None,
-                                    align=not bounds)
+                                    align=not bounds, max_pixels=None)
+    names = {"resolution": "--res", "bounds": "--bounds", "max_pixels": "--max-pixels"}
+    grid.check(max_pixels=max_pixels, names=names)  # before the graph: 10^20 pixels is no job
     data = orthorectify(source, model, dem, grid, kernel=resampling, tolerance_px=tolerance,
                         chunks=chunks)
     driver = "COG" if cog else "GTiff"
-    if scheduler in ("threads", "processes", "synchronous"):
-        write_ortho(data, output, driver=driver, scheduler=scheduler, progress=progress)
-    else:
-        from distributed import Client
+    empty = "warn" if allow_empty else "error"
+    try:
+        if scheduler in ("threads", "processes", "synchronous"):
+            write_ortho(data, output, driver=driver, scheduler=scheduler, progress=progress,
+                        empty=empty)
+        else:
+            from distributed import Client
 
-        with Client(scheduler) as client:
-            write_ortho(data, output, driver=driver, scheduler=client, progress=progress)
+            with Client(scheduler) as client:
+                write_ortho(data, output, driver=driver, scheduler=client, progress=progress,
+                            empty=empty)
+    except EmptyOutputError as exc:
+        raise EmptyOutputError(f"{exc}: {_why_empty(model, dem, grid, bool(bounds))}; "
+                               "pass --allow-empty to write it anyway") from exc
     click.echo(f"{output}: {grid.shape[0]} x {grid.shape[1]} px, {source.bands} band(s)",
                err=True)
+
+
+def _why_empty(model, dem, grid, bounds_given: bool) -> str:
+    """The likely reason an ortho has no valid pixel, for the error message."""
+    import math
+
+    import numpy as np
+
+    from geoblock import coords
+
+    try:
+        lo, hi = model.height_range
+        mid = 0.5 * (lo + hi) if math.isfinite(lo) and math.isfinite(hi) else 0.0
+        fp = model.footprint(mid, n=32)
+        lon, lat = np.asarray(fp.lon), np.asarray(fp.lat)
+        ok = np.isfinite(lon) & np.isfinite(lat)
+        lon, lat = lon[ok], lat[ok]
+        box = (float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max()))
+        x, y = coords.transformer("EPSG:4326", grid.crs).transform(lon, lat)
+        xmin, ymin, xmax, ymax = grid.bounds
+        if x.max() < xmin or x.min() > xmax or y.max() < ymin or y.min() > ymax:
+            what = "--bounds" if bounds_given else "the output grid"
+            return (f"{what} ({xmin:.10g}, {ymin:.10g}, {xmax:.10g}, {ymax:.10g}) do not "
+                    f"overlap the image footprint ({x.min():.10g}, {y.min():.10g}, "
+                    f"{x.max():.10g}, {y.max():.10g}) in {grid.crs.name}")
+        dlo, dhi = (float(v) for v in dem.height_range(box))
+        if not (math.isfinite(dlo) and math.isfinite(dhi)):
+            return (f"the DEM has no valid height over the scene (lon {box[0]:.6f} to "
+                    f"{box[2]:.6f}, lat {box[1]:.6f} to {box[3]:.6f}): it does not cover it "
+                    "or is all nodata there")
+    except Exception:  # the diagnosis must not hide the error itself
+        pass
+    return ("check that the DEM covers the scene, that --bounds overlap the footprint and "
+            "that the image is not all nodata")

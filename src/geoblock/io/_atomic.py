@@ -1,24 +1,149 @@
-"""Atomic writes: every file geoblock writes appears complete under its name or not at all."""
+"""Atomic writes: every file geoblock writes appears complete under its name or not at all.
+
+A file ``DIR/NAME`` is written under a hidden temporary ``DIR/.NAME.<12 hex digits>.tmp``
+(``write_ortho``'s COG step also uses ``DIR/.NAME.<12 hex digits>.cog.tmp``) and renamed to
+``NAME`` only when complete. An exception, ``Ctrl-C`` or ``SIGTERM`` (the ``geoblock`` command
+turns it into the same clean-up path, see :func:`geoblock.cli.main.main`) removes the temporary.
+Only ``SIGKILL``, a crash of the interpreter or a power cut can leave one behind; the next write
+of the same ``NAME`` removes such *stale* temporaries (:func:`remove_stale_temporaries`).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
+import sys
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 from geoblock.errors import GeoblockIOError
 
-__all__ = ["atomic_path"]
+__all__ = ["atomic_path", "remove_stale_temporaries", "temporary_name_pattern"]
+
+#: A temporary not modified for this many seconds, and held open by no process of this host
+#: that the user can inspect (``/proc``), is stale.
+STALE_AFTER_S = 10.0
+#: Where ``/proc`` cannot tell whether a process holds the file (macOS, Windows), a temporary
+#: is stale only when it has not been modified for this many seconds.
+STALE_AFTER_WITHOUT_PROC_S = 3600.0
+
+
+def temporary_name_pattern(name: str) -> re.Pattern[str]:
+    """The names of geoblock's temporaries for the final file name ``name`` (and no other)."""
+    return re.compile(rf"\.{re.escape(name)}\.[0-9a-f]{{12}}(?:\.cog)?\.tmp")
+
+
+def _temporary_for(path: Path) -> Path:
+    return path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+
+
+def _open_files_on_this_host() -> set[tuple[int, int]] | None:
+    """``(st_dev, st_ino)`` of every file open in a process of this host that this user can
+    inspect (its own, ordinary processes: a geoblock run among them), or ``None`` without
+    ``/proc``."""
+    proc = Path("/proc")
+    if not sys.platform.startswith("linux") or not (proc / "self" / "fd").is_dir():
+        return None
+    held: set[tuple[int, int]] = set()
+    for entry in proc.iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fds = list((entry / "fd").iterdir())
+        except OSError:  # ended meanwhile, or another user's (or a non-dumpable) process
+            continue
+        for fd in fds:
+            try:
+                st = fd.stat()  # follows the link to the open file
+            except OSError:
+                continue
+            held.add((st.st_dev, st.st_ino))
+    return held
+
+
+def remove_stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporaries a killed earlier write of ``path`` left beside it.
+
+    The rule, chosen so that a write in progress is never touched:
+
+    * only files in ``path``'s folder named exactly ``.NAME.<12 hex digits>.tmp`` or
+      ``.NAME.<12 hex digits>.cog.tmp``, with ``NAME`` the name of ``path`` (the temporaries of
+      another output, or files a user named alike, are left alone), regular files (not
+      symbolic links) owned by the current user;
+    * and not modified for :data:`STALE_AFTER_S` seconds (10 s) *and* held open by no process
+      of this host that the user can inspect (checked in ``/proc``, on Linux: the user's own
+      processes, so any geoblock run writing it). Where ``/proc`` cannot tell, not modified
+      for :data:`STALE_AFTER_WITHOUT_PROC_S` seconds (one hour).
+
+    A write in progress holds its temporary open (GDAL, the JSON and CSV writers) or has just
+    modified it (the instants between closing and renaming it), so it is never removed.
+
+    A write of the same output by another host through a shared file system is not visible in
+    ``/proc``: two concurrent writes of one output are not supported anyway (the last rename
+    wins), and removing the other's temporary makes its write fail with an error naming the
+    path rather than produce a wrong file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The final name of the file about to be written.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The temporaries removed. Failures to remove one (permissions, a race) are ignored.
+    """
+    path = Path(path)
+    pattern = temporary_name_pattern(path.name)
+    try:
+        candidates = [p for p in path.parent.iterdir() if pattern.fullmatch(p.name)]
+    except OSError:
+        return []
+    if not candidates:
+        return []
+    now = time.time()
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    old = []
+    for candidate in candidates:
+        try:
+            st = candidate.lstat()
+        except OSError:
+            continue
+        if not candidate.is_file() or candidate.is_symlink():
+            continue
+        if uid is not None and st.st_uid != uid:
+            continue
+        if now - st.st_mtime >= STALE_AFTER_S:
+            old.append((candidate, st))
+    if not old:
+        return []
+    held = _open_files_on_this_host()
+    removed = []
+    for candidate, st in old:
+        if held is None:
+            if now - st.st_mtime < STALE_AFTER_WITHOUT_PROC_S:
+                continue
+        elif (st.st_dev, st.st_ino) in held:
+            continue
+        try:
+            candidate.unlink()
+        except OSError:
+            continue
+        removed.append(candidate)
+    return removed
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
     """A temporary path beside ``path``, renamed to ``path`` when the block succeeds.
 
-    A reader never sees a half-written file, and a failure (an exception, an interrupt)
-    leaves any previous file intact and no temporary behind.
+    A reader never sees a half-written file, and a failure (an exception, an interrupt,
+    ``SIGTERM`` under the ``geoblock`` command) leaves any previous file intact and no
+    temporary behind. Stale temporaries of the same ``path`` left by a killed earlier run
+    are removed first (:func:`remove_stale_temporaries` gives the rule).
 
     Parameters
     ----------
@@ -37,7 +162,8 @@ def atomic_path(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
     folder = path.parent
     if not folder.is_dir():
         raise GeoblockIOError(f"cannot write {what}{path}: the directory {folder} does not exist")
-    tmp = folder / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
+    remove_stale_temporaries(path)
+    tmp = _temporary_for(path)
     try:
         yield tmp
         os.replace(tmp, path)

@@ -6,7 +6,8 @@
 * :func:`write_ortho` computes a lazy ``(band, y, x)`` :class:`xarray.DataArray` chunk by chunk
   and writes it as a tiled GeoTIFF or a COG, under a temporary name in the destination
   directory, renamed to ``path`` only when everything was written: a failed or interrupted run
-  leaves nothing under ``path`` (and removes its temporary file).
+  leaves nothing under ``path`` (and removes its temporary file). An output with no valid pixel
+  (every pixel nodata) is refused by default (``empty="error"``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from geoblock.errors import GeoblockIOError
+from geoblock.errors import EmptyOutputError, EmptyOutputWarning, GeoblockIOError
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
 
@@ -270,6 +271,17 @@ def _iter_threads(items: list, in_flight: int, bar: Any):
                 fut.cancel()
 
 
+def _has_valid(block: np.ndarray, nodata: float | None) -> bool:
+    """Whether some pixel of a (bands, R, C) block has a band that is neither nodata nor NaN."""
+    bad = np.isnan(block) if block.dtype.kind == "f" else np.zeros(block.shape, bool)
+    if nodata is not None and not math.isnan(nodata):
+        bad |= block == nodata
+    return not bool(bad.all(axis=0).all())
+
+
+EMPTY = ("error", "warn", "ignore")
+
+
 def write_ortho(
     data: Any,
     path: PathLike,
@@ -281,6 +293,7 @@ def write_ortho(
     scheduler: Any = None,
     in_flight: int | None = None,
     progress: bool = False,
+    empty: str = "error",
     **creation_options: Any,
 ) -> Path:
     """Compute a ``(band, y, x)`` DataArray and write it as a tiled GeoTIFF or a COG, atomically.
@@ -311,6 +324,13 @@ def write_ortho(
     progress : bool
         Show a progress bar on standard error (a tqdm bar on a terminal; elsewhere only a
         final summary line, no carriage-return frames).
+    empty : {"error", "warn", "ignore"}
+        What to do when no pixel is valid (every band of every pixel is ``nodata`` or NaN:
+        e.g. an ortho whose DEM does not cover the scene or whose grid misses it):
+        ``"error"`` raises :class:`~geoblock.errors.EmptyOutputError` and leaves nothing
+        under ``path``; ``"warn"`` writes the file and warns
+        (:class:`~geoblock.errors.EmptyOutputWarning`); ``"ignore"`` writes it silently.
+        Without a nodata value every pixel of an integer array is valid.
     **creation_options
         More GDAL creation options.
 
@@ -323,6 +343,8 @@ def write_ortho(
     ------
     GeoblockIOError
         The destination directory does not exist, or GDAL cannot write.
+    EmptyOutputError
+        No pixel is valid and ``empty="error"``.
     """
     import dask.array as da
     import rasterio
@@ -332,8 +354,13 @@ def write_ortho(
     path = Path(path)
     if driver.upper() not in ("GTIFF", "COG"):
         raise ValueError(f"write_ortho: driver must be 'GTiff' or 'COG', got {driver!r}")
+    if empty not in EMPTY:
+        raise ValueError(f"write_ortho: empty must be one of {EMPTY}, got {empty!r}")
     if not path.parent.is_dir():
         raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
+    from geoblock.io._atomic import remove_stale_temporaries
+
+    remove_stale_temporaries(path)  # left by a killed earlier run of the same output
     if tuple(data.dims) != ("band", "y", "x"):
         raise ValueError(f"write_ortho: dims must be ('band', 'y', 'x'), got {data.dims}")
     wkt, transform = _georeferencing(data)
@@ -371,13 +398,24 @@ def write_ortho(
                                    and dtype.kind in "iub"):
         profile["nodata"] = nodata
     profile.update(creation_options)
+    valid_nodata = profile.get("nodata")
+    valid_nodata = None if valid_nodata is None else float(valid_nodata)
+    any_valid = empty == "ignore"
     try:
         with rasterio.open(tmp, "w", **profile) as dst:
             for r0, c0, block in _iter_blocks(array, scheduler, in_flight, progress):
                 block = np.asarray(block)
                 if block.dtype == np.dtype(bool):
                     block = block.astype(np.uint8)
+                if not any_valid:
+                    any_valid = _has_valid(block, valid_nodata)
                 dst.write(block, window=Window(c0, r0, block.shape[2], block.shape[1]))
+        if not any_valid:
+            message = (f"{path}: no valid pixel to write: all {rows} x {cols} pixels are nodata "
+                       f"({valid_nodata if valid_nodata is not None else 'NaN'})")
+            if empty == "error":
+                raise EmptyOutputError(message + "; nothing was written")
+            warnings.warn(message + "; written anyway", EmptyOutputWarning, stacklevel=2)
         if driver.upper() == "COG":
             options = {"compress": compress} if compress else {}
             rasterio.shutil.copy(tmp, cog_tmp, driver="COG", blocksize=int(blocksize), **options)

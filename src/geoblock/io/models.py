@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from geoblock.errors import GeoblockIOError, UnsupportedFormatError
 from geoblock.models.protocol import SensorModel
+
+if TYPE_CHECKING:  # pragma: no cover
+    from geoblock.plugins import HookFailure
 
 __all__ = ["open_model", "write_model"]
 
@@ -22,6 +25,9 @@ def open_model(
     Every plugin's ``geoblock_read_sensor_model`` hook is asked in turn (specific readers
     first, generic ones last) until one recognises the file. geoblock's own model JSON
     (``to_dict()`` output, as written by :func:`write_model`) is read by the built-in plugin.
+    A reader that fails with anything but a :class:`~geoblock.errors.GeoblockError` is a plugin
+    bug: it is skipped with a :class:`~geoblock.errors.PluginWarning` naming the plugin and the
+    next reader is asked (:func:`geoblock.plugins.call_firstresult`).
 
     Parameters
     ----------
@@ -52,7 +58,7 @@ def open_model(
         A reader recognised the file but found it invalid.
     """
     from geoblock.models.registry import get_registry
-    from geoblock.plugins import get_plugin_manager
+    from geoblock.plugins import call_firstresult, get_plugin_manager
 
     path = Path(path)
     if not (path.is_file() or path.is_dir()):  # a directory: a product (e.g. SPOT DIMAP)
@@ -61,18 +67,29 @@ def open_model(
     if model is not None:
         registry.get(model)  # UnknownModelError listing the registered names
     pm = get_plugin_manager()
-    result = pm.hook.geoblock_read_sensor_model(path=path, model_name=model, options=options)
+    result, failures = call_firstresult(
+        pm, "geoblock_read_sensor_model", path=path, model_name=model, options=options
+    )
     if result is None:
         consulted = [i.plugin_name for i in pm.hook.geoblock_read_sensor_model.get_hookimpls()]
         wanted = f" as model {model!r}" if model else ""
         what = "product directory" if path.is_dir() else "file"
         raise UnsupportedFormatError(
             f"{str(path)!r}: no geoblock plugin can read this {what}{wanted}. Readers consulted: "
-            f"{', '.join(consulted) or '(none)'}; registered models: "
+            f"{', '.join(consulted) or '(none)'}{_failed(failures)}; registered models: "
             f"{', '.join(registry.names()) or '(none)'}. Install the plugin for this sensor "
             "or check the file."
         )
     return result
+
+
+def _failed(failures: list[HookFailure]) -> str:
+    """``" (failed and skipped: rpc (RuntimeError: boom))"``, or ``""``."""
+    if not failures:
+        return ""
+    return " (failed and skipped: " + ", ".join(
+        f"{f.plugin_name} ({f.reason})" for f in failures
+    ) + ")"
 
 
 def write_model(
@@ -89,14 +106,16 @@ def write_model(
         ``"json"`` (geoblock model JSON, any model) or a format a plugin writes (for example
         ``"rpc-txt"``); inferred from the suffix when omitted (``.json`` -> ``"json"``).
     **options
-        Writer options, passed to the plugins.
+        Writer options, passed to the plugins. A writer failing with anything but a
+        :class:`~geoblock.errors.GeoblockError` is skipped with a
+        :class:`~geoblock.errors.PluginWarning`, as in :func:`open_model`.
 
     Returns
     -------
     pathlib.Path
         The path written.
     """
-    from geoblock.plugins import get_plugin_manager
+    from geoblock.plugins import call_firstresult, get_plugin_manager
 
     path = Path(path)
     if format is None:
@@ -111,13 +130,13 @@ def write_model(
             f"cannot write {str(path)!r}: directory {str(path.parent)!r} does not exist"
         )
     pm = get_plugin_manager()
-    written = pm.hook.geoblock_write_sensor_model(
-        model=model, path=path, format=format, options=options
+    written, failures = call_firstresult(
+        pm, "geoblock_write_sensor_model", model=model, path=path, format=format, options=options
     )
     if not written:
         consulted = [i.plugin_name for i in pm.hook.geoblock_write_sensor_model.get_hookimpls()]
         raise UnsupportedFormatError(
             f"{str(path)!r}: no geoblock plugin writes model {model.name!r} as {format!r}. "
-            f"Writers consulted: {', '.join(consulted)}"
+            f"Writers consulted: {', '.join(consulted)}{_failed(failures)}"
         )
     return path

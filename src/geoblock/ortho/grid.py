@@ -24,6 +24,17 @@ and with ``-tap`` (``bTargetAlignedPixels``) the bounds are first snapped outwar
 (older GDAL computed ``(int)((xmax - xmin + xres / 2) / xres)``, the same rounding up to the
 last bit). The right and bottom edges of the grid are therefore ``xmin + cols * xres`` and
 ``ymax - rows * yres``, which may differ from the requested bounds by up to half a pixel.
+
+:meth:`OutputGrid.check` refuses grids that cannot be meant (:class:`~geoblock.errors.GridError`,
+naming the argument and the size the grid would have had): more than ``2**31 - 1`` pixels per
+side or more than ``max_pixels`` (default :data:`MAX_PIXELS`) in all, fewer than 2 x 2 pixels,
+or pixels larger than 1 degree in a geographic CRS. :meth:`OutputGrid.for_model` applies it;
+:meth:`OutputGrid.from_bounds` does not (it is gdalwarp's grid, whatever it is).
+
+The default resolution of :meth:`OutputGrid.for_model` is the image's ground sample distance
+rounded to the nearest (in ratio) "nice" number ``{1, 2, 2.5, 5} x 10**k``
+(:func:`nice_resolution`), on a grid aligned to multiples of it, so that orthos of the same
+sensor made with default options share one grid and can be mosaicked.
 """
 
 from __future__ import annotations
@@ -40,10 +51,61 @@ from affine import Affine
 
 from geoblock import coords
 from geoblock._affine import apply
+from geoblock.errors import GridError
 
-__all__ = ["OutputGrid"]
+__all__ = ["MAX_PIXELS", "OutputGrid", "nice_resolution"]
 
 _TAP_EPS = 1e-8  # gdalwarp's tolerance when snapping -tap bounds
+
+#: default largest number of pixels of a checked grid (:meth:`OutputGrid.check`), ~6.9e10
+MAX_PIXELS = 2**36
+#: largest number of pixels per side (GDAL's raster sizes are C ints)
+MAX_SIDE = 2**31 - 1
+#: smallest number of pixels per side of a checked grid
+MIN_SIDE = 2
+#: largest pixel size, degrees, in a geographic CRS
+MAX_DEGREES = 1.0
+#: mantissas of the "nice" resolutions
+NICE_MANTISSAS = (1.0, 2.0, 2.5, 5.0)
+
+
+def nice_resolution(value: float) -> float:
+    """The "nice" number ``{1, 2, 2.5, 5} x 10**k`` nearest to ``value`` in ratio.
+
+    Nearest in ratio: ``|log(value / nice)|`` is smallest (ties go to the finer one), so the
+    boundaries sit at the geometric means of neighbours (1.41, 2.24, 3.54, 7.07 x 10**k), away
+    from the usual nominal GSDs (0.3, 0.5, 1.5, 2.5, 5, 10, 20 m). The result is the double
+    nearest to the decimal number (``0.2`` is ``float("2e-1")``).
+
+    Parameters
+    ----------
+    value : float
+        Positive and finite.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    GridError
+        ``value`` is not positive and finite.
+    """
+    v = float(value)
+    if not (math.isfinite(v) and v > 0):
+        raise GridError(f"nice_resolution: need a positive finite value, got {value!r}",
+                        parameter="resolution")
+    e = math.floor(math.log10(v))
+    candidates = [float(f"{m:g}e{k}") for k in (e - 1, e, e + 1) for m in NICE_MANTISSAS]
+    return min(candidates, key=lambda c: (abs(math.log(v / c)), c))
+
+
+def _name(names: Mapping[str, str] | None, key: str) -> str:
+    return (names or {}).get(key, key)
+
+
+def _fmt_res(res: tuple[float, float]) -> str:
+    return f"{res[0]:g}" if res[0] == res[1] else f"{res[0]:g} {res[1]:g}"
 
 
 def _round_half_away(v: float) -> int:
@@ -58,7 +120,8 @@ def _resolution_pair(resolution: float | tuple[float, float]) -> tuple[float, fl
     else:
         xres, yres = (float(v) for v in resolution)  # type: ignore[union-attr]
     if not (math.isfinite(xres) and math.isfinite(yres) and xres > 0 and yres > 0):
-        raise ValueError(f"resolution must be positive and finite, got {resolution!r}")
+        raise GridError(f"resolution must be positive and finite, got {resolution!r}",
+                        parameter="resolution")
     return xres, yres
 
 
@@ -137,9 +200,11 @@ class OutputGrid:
         xres, yres = _resolution_pair(resolution)
         xmin, ymin, xmax, ymax = (float(v) for v in bounds)
         if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
-            raise ValueError(f"from_bounds: bounds must be finite, got {bounds!r}")
+            raise GridError(f"from_bounds: bounds must be finite, got {bounds!r}",
+                            parameter="bounds")
         if not (xmax > xmin and ymax > ymin):
-            raise ValueError(f"from_bounds: need xmin < xmax and ymin < ymax, got {bounds!r}")
+            raise GridError(f"from_bounds: need xmin < xmax and ymin < ymax, got {bounds!r}",
+                            parameter="bounds")
         if align:
             xmin = math.floor(xmin / xres + _TAP_EPS) * xres
             xmax = math.ceil(xmax / xres - _TAP_EPS) * xres
@@ -159,6 +224,7 @@ class OutputGrid:
         resolution: float | tuple[float, float] | None = None,
         bounds: tuple[float, float, float, float] | None = None,
         align: bool = True,
+        max_pixels: int | None = MAX_PIXELS,
     ) -> OutputGrid:
         """The default output grid of an image: its UTM zone, its GSD, its footprint.
 
@@ -171,12 +237,15 @@ class OutputGrid:
         crs : pyproj.CRS or str or int, optional
             Default: :func:`geoblock.coords.utm_crs` of the footprint.
         resolution : float or (float, float), optional
-            CRS units. Default: the ground sample distance at the image centre, in CRS units:
-            ``sqrt(|det J|)`` where ``J = d(x, y)/d(col, row)`` is the central difference of
-            the backprojection of the centre pixel's neighbours (+-0.5 px) at the DEM height
-            there, i.e. the side of the square with the area of the centre pixel on the
-            ground. It is kept exact (e.g. 1.99987... m), not rounded; pass ``resolution``
-            for a round number.
+            CRS units. Default: the ground sample distance at the image centre, in CRS units,
+            rounded to the nearest nice number ``{1, 2, 2.5, 5} x 10**k``
+            (:func:`nice_resolution`: 1.99987... m gives 2 m, 0.31 m gives 0.25 m), so that
+            orthos of one sensor made with the defaults share the resolution (and, with
+            ``align``, the grid) and mosaic together. The GSD is ``sqrt(|det J|)`` where
+            ``J = d(x, y)/d(col, row)`` is the central difference of the backprojection of
+            the centre pixel's neighbours (+-0.5 px) at the DEM height there, i.e. the side
+            of the square with the area of the centre pixel on the ground. Pass
+            ``resolution`` for any other value.
         bounds : (float, float, float, float), optional
             ``(xmin, ymin, xmax, ymax)`` in CRS units. Default: the bounding box, in the output
             CRS, of the image outline (pixel edges, ``model.footprint``) backprojected at the
@@ -184,10 +253,17 @@ class OutputGrid:
             on the terrain.
         align : bool
             Snap the bounds outward to multiples of the resolution (gdalwarp ``-tap``).
+        max_pixels : int or None
+            The grid is checked (:meth:`check`) with this limit; None skips the check.
 
         Returns
         -------
         OutputGrid
+
+        Raises
+        ------
+        GridError
+            The grid is impossible (:meth:`check`), or the resolution or bounds are invalid.
         """
         from geoblock.dem import ConstantDem, localize
 
@@ -206,17 +282,80 @@ class OutputGrid:
                 crs = coords.utm_crs(lon, lat)
         crs = pyproj.CRS.from_user_input(crs)
         if resolution is None:
-            resolution = _gsd(model, rc, cc, h_centre, crs)
+            resolution = nice_resolution(_gsd(model, rc, cc, h_centre, crs))
         if bounds is None:
             x, y = coords.transformer("EPSG:4326", crs).transform(lon, lat)
             x, y = np.asarray(x), np.asarray(y)
             ok = np.isfinite(x) & np.isfinite(y)
             if not ok.any():
-                raise ValueError(
-                    "OutputGrid.for_model: the image outline does not project into the CRS"
+                raise GridError(
+                    "OutputGrid.for_model: the image outline does not project into the CRS "
+                    f"{crs.name!r}", parameter="crs"
                 )
             bounds = (x[ok].min(), y[ok].min(), x[ok].max(), y[ok].max())
-        return cls.from_bounds(crs, bounds, resolution, align=align)
+        grid = cls.from_bounds(crs, bounds, resolution, align=align)
+        if max_pixels is not None:
+            grid.check(max_pixels=max_pixels)
+        return grid
+
+    def check(
+        self,
+        *,
+        max_pixels: int = MAX_PIXELS,
+        names: Mapping[str, str] | None = None,
+    ) -> OutputGrid:
+        """Refuse a grid that cannot be meant, before anything is computed on it.
+
+        Parameters
+        ----------
+        max_pixels : int
+            Largest number of pixels (``rows * cols``).
+        names : mapping of str to str, optional
+            How to name ``"resolution"``, ``"bounds"`` and ``"max_pixels"`` in the message
+            (the command line passes ``{"resolution": "--res", ...}``).
+
+        Returns
+        -------
+        OutputGrid
+            ``self``.
+
+        Raises
+        ------
+        GridError
+            In a geographic CRS, pixels larger than 1 degree (``parameter="resolution"``);
+            more than ``2**31 - 1`` pixels per side or more than ``max_pixels`` in all, or
+            fewer than 2 x 2 pixels (``parameter="resolution"``). The message says the size
+            the grid would have had.
+        """
+        rows, cols = self.shape
+        res = self.resolution
+        res_name, bounds_name = _name(names, "resolution"), _name(names, "bounds")
+        crs_name = self.crs.to_string() if self.crs.to_epsg() else self.crs.name
+        where = (f"{res_name} {_fmt_res(res)} over {bounds_name} "
+                 f"({', '.join(f'{v:.10g}' for v in self.bounds)}) in {crs_name}")
+        size = f"{rows} x {cols} pixels"
+        if self.crs.is_geographic and max(res) > MAX_DEGREES:
+            raise GridError(
+                f"{res_name} {_fmt_res(res)}: {crs_name} is a geographic CRS, its resolution is "
+                f"in degrees, and pixels larger than {MAX_DEGREES:g} degree are refused (the "
+                f"grid would be {size}); give the resolution in degrees (1e-05 degree is "
+                "about 1.1 m) or choose a projected CRS", parameter="resolution")
+        if max(rows, cols) > MAX_SIDE:
+            raise GridError(
+                f"{where} would make a grid of {size}: more than 2**31 - 1 = {MAX_SIDE} pixels "
+                f"per side; pass a coarser {res_name} or smaller {bounds_name}",
+                parameter="resolution")
+        if rows * cols > max_pixels:
+            raise GridError(
+                f"{where} would make a grid of {size} ({rows * cols:.3g} pixels): more than "
+                f"{_name(names, 'max_pixels')} = {max_pixels} ({max_pixels:.3g}); pass a coarser "
+                f"{res_name} or smaller {bounds_name}, or raise {_name(names, 'max_pixels')}",
+                parameter="resolution")
+        if min(rows, cols) < MIN_SIDE:
+            raise GridError(
+                f"{where} would make a grid of {size}: fewer than {MIN_SIDE} x {MIN_SIDE}; pass "
+                f"a finer {res_name} or larger {bounds_name}", parameter="resolution")
+        return self
 
     # ------------------------------------------------------------------ geometry
     @property

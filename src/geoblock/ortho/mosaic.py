@@ -103,7 +103,9 @@ def _offset(grid: Any, ref: Any, index: int) -> tuple[int, int]:
         if abs(mine - theirs) > _RES_RTOL * max(abs(mine), abs(theirs)):
             raise MosaicError(
                 f"mosaic: source {index + 1} has resolution {grid.resolution}, not "
-                f"{ref.resolution}; mosaic does not resample: warp it onto the same resolution")
+                f"{ref.resolution}; mosaic does not resample: make the orthos at one resolution "
+                "(geoblock ortho's default rounds the GSD, or pass the same --res to each) or "
+                "warp them onto it")
     t, r = grid.transform, ref.transform
     col = (t.c - r.c) / r.a
     row = (t.f - r.f) / r.e

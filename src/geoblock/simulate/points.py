@@ -137,7 +137,8 @@ class SimulatedMeasurements:
 
 @dataclass(frozen=True, eq=False)
 class PointSet:
-    """Simulated points: :class:`SimulatedGround`, :class:`SimulatedMeasurements` and the image names.
+    """Simulated points: :class:`SimulatedGround`, :class:`SimulatedMeasurements` and the image
+    names.
 
     Attributes
     ----------

@@ -798,6 +798,10 @@ def _dispatch(path: Path) -> Result | None:
     return result
 
 
+class ReaderOptionError(ModelFormatError, TypeError):
+    """An option given to the RPC reader is unknown or invalid (names the file and option)."""
+
+
 def _text(path: Path) -> str:
     return _decode(path.read_bytes())
 
@@ -805,7 +809,9 @@ def _text(path: Path) -> str:
 def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
     unknown = set(options) - {"crop_offset", "crop_from_geotransform", "image"}
     if unknown:
-        raise TypeError(f"unknown RPC reader option(s): {', '.join(sorted(unknown))}")
+        raise ReaderOptionError(f"{_src(path)}: unknown RPC reader option(s): "
+                                f"{', '.join(sorted(unknown))}; options: crop_offset, "
+                                "crop_from_geotransform, image")
     result = _dispatch(path)
     if result is None:
         return None
@@ -828,7 +834,8 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
                 "with this metadata file"
             )
         if crop is not None:
-            raise TypeError("give crop_offset or crop_from_geotransform, not both")
+            raise ReaderOptionError(f"{_src(path)}: give crop_offset or crop_from_geotransform, "
+                                    "not both")
         crop = _pixel_crop_origin(source)
         extra["crop_source"] = str(source)
     if image is not None:
@@ -837,7 +844,7 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
     if crop is not None:
         row0, col0 = (float(v) for v in crop)
         if not (math.isfinite(row0) and math.isfinite(col0)):
-            raise ValueError(f"crop_offset must be finite, got {crop!r}")
+            raise ReaderOptionError(f"{_src(path)}: crop_offset must be finite, got {crop!r}")
         rpc = rpc.replace(line_off=rpc.line_off - row0, samp_off=rpc.samp_off - col0)
         extra["crop_offset"] = (row0, col0)
         if image is None and extra.get("crop_source") is None:

@@ -706,7 +706,7 @@ def dimap2_model(
             raise ParameterSetError("parameters='dg' needs accuracy_m (the product's location "
                                     "accuracy, 1 sigma, metres)")
         return model.with_parameter_set("dg")
-    raise ValueError(f"parameters must be 'linescan', 'dg' or a ParameterSet, got "
+    raise ParameterSetError(f"parameters must be 'linescan', 'dg' or a ParameterSet, got "
                      f"{parameters!r}")
 
 

@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 
 from geoblock import coords
+from geoblock.errors import ParameterSetError
 from geoblock.models.linescan import (
     DG_ADJUSTABLE,
     Attitude,
@@ -207,7 +208,8 @@ def spot_dimap_model(
         return model.replace(parameters=parameters)
     if parameters in ("dg", "linescan"):
         return model.with_parameter_set(parameters)
-    raise ValueError(f"parameters must be 'dg', 'linescan' or a ParameterSet, got {parameters!r}")
+    raise ParameterSetError(f"parameters must be 'dg', 'linescan' or a ParameterSet, got "
+                            f"{parameters!r}")
 
 
 @dataclass(frozen=True, eq=False)
