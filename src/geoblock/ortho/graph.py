@@ -141,7 +141,7 @@ def orthorectify(
         Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`).
     grid : OutputGrid, optional
         Default :meth:`OutputGrid.for_model(model, dem) <geoblock.ortho.grid.OutputGrid.for_model>`
-        (UTM zone, GSD, footprint, aligned).
+        (UTM zone, GSD rounded to a nice number, footprint, aligned, checked).
     kernel : {"nearest", "bilinear", "bicubic", "sinc"}
         Resampling kernel.
     tolerance_px : float
