@@ -14,11 +14,13 @@ from geoblock.models.corrections import ImageCorrection
 @hookimpl
 def geoblock_register_sensor_models(register):
     from geoblock.adjust.collocation import CollocationCorrection
+    from geoblock.models.crop import CroppedModel
     from geoblock.models.linescan import LinescanModel
     from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
     register(ImageCorrection)
     register(CollocationCorrection)
+    register(CroppedModel)
     register(LinescanModel)
     register(AffineCamera)
     register(ConstantVelocityPushbroom)

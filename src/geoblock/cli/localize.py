@@ -6,8 +6,11 @@ import click
 
 from geoblock._array import warn_status
 from geoblock.cli.options import (
+    crop_offset_opt,
     model_arg,
+    model_for_image_arg,
     model_name_opt,
+    no_crop_opt,
     open_model_arg,
     output_opt,
     points_arg,
@@ -46,10 +49,15 @@ def _nodata(value: str) -> str | float:
               help="Tolerance, metres.")
 @click.option("--fill-height", type=float, default=None, metavar="H",
               help="Ellipsoidal height used where the DEM has none (outside it, voids).")
+@click.option("--image", "image", metavar="IMAGE", default=None,
+              help="The raster the points were measured on: its shape is checked against "
+              "MODEL's and its pixel-unit geotransform, if any, gives the crop offset.")
+@crop_offset_opt
+@no_crop_opt
 @output_opt
 @model_name_opt
 def localize(model_path, points, dem_source, vertical, geoid, nodata, interpolation, method,
-             tolerance, fill_height, output, model_name) -> None:
+             tolerance, fill_height, image, crop_offset, no_crop, output, model_name) -> None:
     """Intersect the lines of sight of image points of MODEL with the terrain of DEM.
 
     POINTS is a CSV file with a header line holding at least the columns row, col (pixels;
@@ -58,6 +66,11 @@ def localize(model_path, points, dem_source, vertical, geoid, nodata, interpolat
     lat (degrees), h (metres above the WGS84 ellipsoid) and status (converged, no_dem,
     no_intersection, max_iterations, diverged, out_of_domain, invalid_input). Points that
     fail get nan; the others are unaffected.
+
+    Pixels are MODEL's unless the points were measured on a crop of its scene: --image IMAGE
+    (the crop offset of its pixel-unit geotransform, and a refusal when its shape differs from
+    MODEL's with no offset) or --crop-offset ROW COL (the scene pixel of the crop's first
+    pixel) shift them into the scene.
 
     \b
     Examples:
@@ -68,7 +81,17 @@ def localize(model_path, points, dem_source, vertical, geoid, nodata, interpolat
     from geoblock.dem.intersect import localize as _localize
     from geoblock.io import open_dem, read_points, write_points
 
+    if no_crop and crop_offset:
+        raise click.UsageError("give --crop-offset or --no-crop, not both")
     model = open_model_arg(model_path, model_name)
+    if image is not None:
+        model = model_for_image_arg(model, image, crop_offset, no_crop)
+    elif crop_offset:  # no raster: the crop reaches to the scene's far edge
+        from geoblock.models.crop import CroppedModel
+
+        rows, cols = model.shape
+        shape = (max(1, rows - int(crop_offset[0])), max(1, cols - int(crop_offset[1])))
+        model = CroppedModel(model, crop_offset, shape)
     dem = open_dem(dem_source, vertical=vertical, geoid=geoid, nodata=_nodata(nodata),
                    interpolation=interpolation)
     table = read_points(points_source(points), required=("row", "col"))

@@ -15,10 +15,14 @@ import click
 
 __all__ = [
     "bounds_value",
+    "crop_offset_opt",
     "crs_value",
+    "finite_values",
     "json_opt",
     "model_arg",
+    "model_for_image_arg",
     "model_name_opt",
+    "no_crop_opt",
     "nonnegative_float",
     "open_model_arg",
     "output_opt",
@@ -38,6 +42,28 @@ model_name_opt = click.option(
     default=None,
     help="Registered model to read MODEL as (see 'geoblock plugins'); "
     "default: the first plugin that recognises the file.",
+)
+
+#: ``--crop-offset ROW COL``: the image is a crop of the model's scene starting at that pixel.
+crop_offset_opt = click.option(
+    "--crop-offset",
+    "crop_offset",
+    type=float,
+    nargs=2,
+    metavar="ROW COL",
+    default=None,
+    callback=lambda ctx, param, value: finite_values(ctx, param, value),
+    help="The image is a crop of the model's scene whose first pixel is scene pixel (ROW, "
+    "COL); default: as the image's pixel-unit geotransform states it, if it does.",
+)
+
+#: ``--no-crop``: use the model's pixels as they are, whatever the image's shape.
+no_crop_opt = click.option(
+    "--no-crop",
+    is_flag=True,
+    default=False,
+    help="Take image pixel (r, c) as model pixel (r, c): ignore the image's pixel-unit "
+    "geotransform and a shape that differs from the model's.",
 )
 
 #: ``--json``: machine-readable output.
@@ -85,6 +111,30 @@ def open_model_arg(model_path: str, model_name: str | None, **options: Any):
     return open_model(model_path, model=model_name, **options)
 
 
+def model_for_image_arg(model, image, crop_offset: tuple | None, no_crop: bool):
+    """``model`` reconciled with ``image`` (:func:`geoblock.models.crop.model_for_image`).
+
+    Applies the crop offset of ``--crop-offset`` or of the image's pixel-unit geotransform (and
+    says so on standard error), refuses an image whose shape differs from the model's with no
+    crop offset (one ``Error:`` line naming both shapes, ``--crop-offset`` and ``--no-crop``).
+    """
+    from geoblock.models.crop import CLI_NAMES, CroppedModel, model_for_image
+
+    if no_crop and crop_offset:
+        raise click.UsageError("give --crop-offset or --no-crop, not both")
+    out = model_for_image(model, image, crop_offset=crop_offset or None, crop=not no_crop,
+                          names=CLI_NAMES)
+    if isinstance(out, CroppedModel) and out is not model:
+        rows, cols = out.shape
+        scene_rows, scene_cols = model.shape
+        source = "--crop-offset" if crop_offset else "its pixel-unit geotransform"
+        name = getattr(image, "path", image)
+        click.echo(f"{name}: a {rows} x {cols} px crop at row/col {out.offset[0]:g}, "
+                   f"{out.offset[1]:g} of the model's {scene_rows} x {scene_cols} px scene "
+                   f"({source})", err=True)
+    return out
+
+
 # ---------------------------------------------------------------------- option checks
 # click callbacks: a bad value becomes click's one-line usage error naming the option (exit 2)
 def positive_float(ctx: click.Context, param: click.Parameter, value: float | None):
@@ -113,6 +163,15 @@ def crs_value(ctx: click.Context, param: click.Parameter, value: str | None):
         detail = " ".join(str(exc).split())
         raise click.BadParameter(f"{value!r} is not a CRS pyproj knows ({detail}).", ctx,
                                  param) from exc
+
+
+def finite_values(ctx: click.Context, param: click.Parameter, value: tuple | None):
+    """A multi-value float option whose values must be finite (None/() gives None)."""
+    if not value:
+        return None
+    if not all(math.isfinite(v) for v in value):
+        raise click.BadParameter(f"{' '.join(f'{v:g}' for v in value)}: not finite.", ctx, param)
+    return tuple(float(v) for v in value)
 
 
 def bounds_value(ctx: click.Context, param: click.Parameter, value: tuple | None):

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import click
 
-from geoblock.cli.options import bounds_value, crs_value, nonnegative_float, positive_float
+from geoblock.cli.options import (
+    bounds_value,
+    crop_offset_opt,
+    crs_value,
+    model_for_image_arg,
+    no_crop_opt,
+    nonnegative_float,
+    positive_float,
+)
 
 #: geoblock.ortho.grid.MAX_PIXELS, without importing numpy/pyproj when the CLI starts
 MAX_PIXELS = 2**36
@@ -25,6 +33,8 @@ __all__ = ["ortho"]
 @click.option("--model", "model_file", metavar="MODEL_FILE", default=None,
               help="Sensor-model file (RPB, _RPC.TXT, DIMAP, model JSON, ...); default: the "
               "model stored in IMAGE (e.g. its GeoTIFF RPC tags).")
+@crop_offset_opt
+@no_crop_opt
 @click.option("--crs", metavar="CRS", default=None, callback=crs_value,
               help="Output CRS (EPSG:32631, WKT, PROJ string); default the scene's UTM zone.")
 @click.option("--res", "resolution", type=float, metavar="METRES", default=None,
@@ -57,9 +67,9 @@ __all__ = ["ortho"]
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
-def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resolution, bounds,
-          resampling, tolerance, chunks, max_pixels, allow_empty, scheduler, cog,
-          progress) -> None:
+def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offset, no_crop, crs,
+          resolution, bounds, resampling, tolerance, chunks, max_pixels, allow_empty, scheduler,
+          cog, progress) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
 
     Every output pixel centre goes to the ground, takes its height from DEM (ellipsoidal;
@@ -74,6 +84,12 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resol
     failed run leaves nothing under OUT, and a run that produced no valid pixel fails
     (unless --allow-empty).
 
+    IMAGE may be a crop of the model's scene (vendor metadata describe the full scene): the
+    crop offset is applied when IMAGE states it with a pixel-unit geotransform (as
+    'gdal_translate -srcwin' writes), or given with --crop-offset ROW COL. An IMAGE whose shape
+    differs from the model's with no crop offset is refused (--no-crop uses the model's pixels
+    as they are).
+
     \b
     Examples:
       geoblock ortho scene.tif ortho.tif --dem N43E007.hgt
@@ -85,9 +101,13 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crs, resol
     from geoblock.io.images import open_image, write_ortho
     from geoblock.ortho import OutputGrid, orthorectify
 
+    if no_crop and crop_offset:
+        raise click.UsageError("give --crop-offset or --no-crop, not both")
     model = open_model(model_file if model_file is not None else image)
-    dem = open_dem(dem_source, vertical=dem_vertical, geoid=geoid)
     source = open_image(image)
+    # a crop of the model's scene: shifted, or refused when nothing says where it lies
+    model = model_for_image_arg(model, source, crop_offset, no_crop)
+    dem = open_dem(dem_source, vertical=dem_vertical, geoid=geoid)
     if bounds and resolution is not None and crs is not None:
         grid = OutputGrid.from_bounds(crs, tuple(bounds), resolution)  # gdalwarp -te/-tr
     else:

@@ -64,6 +64,12 @@ class ImageSource:
         NumPy dtype name of the pixels (the first band's).
     nodata : float or None
         The file's nodata value, if any.
+    crop_offset : (float, float) or None
+        ``(row0, col0)``: where the image's first pixel lies in a larger scene, when the file
+        says so with a pixel-unit geotransform ``(col0, 1, 0, row0, 0, 1)`` and no CRS (what
+        ``gdal_translate -srcwin`` writes on a raw image; shareloc's Ventoux crops); None
+        otherwise (no geotransform, GDAL's default identity one, or a map geotransform).
+        :func:`geoblock.models.crop.model_for_image` shifts a full-scene model by it.
     """
 
     path: str
@@ -71,6 +77,7 @@ class ImageSource:
     bands: int
     dtype: str
     nodata: float | None = None
+    crop_offset: tuple[float, float] | None = None
 
     def read(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Read a window of every band.
@@ -103,7 +110,8 @@ class ImageSource:
             stamp: tuple = (st.st_size, st.st_mtime_ns)
         except OSError:
             stamp = ()
-        return ("ImageSource", self.path, self.shape, self.bands, self.dtype, self.nodata, stamp)
+        return ("ImageSource", self.path, self.shape, self.bands, self.dtype, self.nodata,
+                self.crop_offset, stamp)
 
 
 def open_image(path: PathLike | ImageSource) -> ImageSource:
@@ -118,6 +126,8 @@ def open_image(path: PathLike | ImageSource) -> ImageSource:
     Returns
     -------
     ImageSource
+        With :attr:`~ImageSource.crop_offset` when the raster has a pixel-unit geotransform
+        (a crop of a larger scene, see :func:`pixel_crop_offset`).
 
     Raises
     ------
@@ -140,9 +150,40 @@ def open_image(path: PathLike | ImageSource) -> ImageSource:
                 bands=int(ds.count),
                 dtype=str(np.dtype(ds.dtypes[0])),
                 nodata=None if nodata is None else float(nodata),
+                crop_offset=pixel_crop_offset(ds.transform, ds.crs),
             )
     except rasterio.errors.RasterioIOError as exc:
         raise GeoblockIOError(f"cannot open the image {name}: {exc}") from exc
+
+
+def pixel_crop_offset(transform: Any, crs: Any = None) -> tuple[float, float] | None:
+    """``(row0, col0)`` of a crop stated by a pixel-unit geotransform, else None.
+
+    A raster without CRS whose geotransform is ``(col0, 1, 0, row0, 0, 1)`` (GDAL order;
+    rasterio's ``Affine(1, 0, col0, 0, 1, row0)``) is a window of a larger image starting at
+    pixel ``(row0, col0)`` (``gdal_translate -srcwin`` on a raw image): pixel ``(r, c)`` of the
+    file is pixel ``(r + row0, c + col0)`` of the scene, pixel centres on both sides. The
+    identity (GDAL's default for rasters without geotransform) says nothing and gives None,
+    as does any map geotransform or a raster with a geographic or projected CRS.
+
+    Parameters
+    ----------
+    transform : affine.Affine or sequence
+        The raster's geotransform, rasterio order ``(a, b, c, d, e, f)``.
+    crs : rasterio CRS, optional
+    """
+    if crs is not None and (getattr(crs, "is_geographic", False)
+                            or getattr(crs, "is_projected", False)):
+        return None
+    try:
+        a, b, c, d, e, f = (float(v) for v in tuple(transform)[:6])
+    except (TypeError, ValueError):
+        return None
+    if (a, b, d, e) != (1.0, 0.0, 0.0, 1.0) or not (math.isfinite(c) and math.isfinite(f)):
+        return None
+    if c == 0.0 and f == 0.0:
+        return None
+    return f, c
 
 
 # ---------------------------------------------------------------------- writing
@@ -179,8 +220,10 @@ def _distributed_client(scheduler: Any) -> Any:
 
 
 def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
-    """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array as they are computed,
-    holding at most about ``in_flight`` chunks in memory."""
+    """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array in row-major chunk order,
+    computing up to ``in_flight`` chunks ahead of the one yielded (finished chunks wait for
+    their turn: the order of the writes, hence the file's bytes, never depends on which chunk
+    finished first)."""
     import dask
 
     starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in array.chunks[1:]]
@@ -191,27 +234,24 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
     client = _distributed_client(scheduler)
     try:
         if client is not None:
-            from distributed import as_completed
-
             pending = deque(items)
-            futures = {}
-            ac = as_completed()
-            while pending and len(futures) < in_flight:
-                r0, c0, d = pending.popleft()
-                fut = client.compute(d)
-                futures[fut.key] = (r0, c0)
-                ac.add(fut)
-            for fut in ac:
-                r0, c0 = futures.pop(fut.key)
-                block = fut.result()
-                fut.release()
-                if pending:
-                    nr0, nc0, d = pending.popleft()
-                    nxt = client.compute(d)
-                    futures[nxt.key] = (nr0, nc0)
-                    ac.add(nxt)
-                bar.update()
-                yield r0, c0, block
+            window: deque = deque()  # (future, row0, col0), in submission (row-major) order
+            try:
+                while pending and len(window) < in_flight:
+                    r0, c0, d = pending.popleft()
+                    window.append((client.compute(d), r0, c0))
+                while window:
+                    fut, r0, c0 = window.popleft()
+                    block = fut.result()
+                    fut.release()
+                    if pending:
+                        nr0, nc0, d = pending.popleft()
+                        window.append((client.compute(d), nr0, nc0))
+                    bar.update()
+                    yield r0, c0, block
+            finally:
+                for fut, _, _ in window:
+                    fut.release()
         elif _local_threads(scheduler):
             # dask's threaded scheduler, pipelined: a pool of one thread per core computes
             # chunks while this thread writes the finished ones (dask.compute on batches
@@ -244,30 +284,29 @@ def _compute_one(delayed: Any) -> Any:
 
 
 def _iter_threads(items: list, in_flight: int, bar: Any):
-    """:func:`_iter_blocks` on a thread pool with at most ``in_flight`` chunks in memory."""
+    """:func:`_iter_blocks` on a thread pool: up to ``in_flight`` chunks computed ahead of the
+    one yielded, yielded in ``items`` order."""
     import concurrent.futures as cf
 
     pending = deque(items)
-    running: dict = {}
+    window: deque = deque()  # (future, row0, col0), in ``items`` order
     with cf.ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="geoblock") as pool:
         def submit() -> None:
             r0, c0, d = pending.popleft()
-            running[pool.submit(_compute_one, d)] = (r0, c0)
+            window.append((pool.submit(_compute_one, d), r0, c0))
 
         try:
-            while pending and len(running) < in_flight:
+            while pending and len(window) < in_flight:
                 submit()
-            while running:
-                done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
-                for fut in done:
-                    r0, c0 = running.pop(fut)
-                    block = fut.result()
-                    if pending:
-                        submit()
-                    bar.update()
-                    yield r0, c0, block
+            while window:
+                fut, r0, c0 = window.popleft()
+                block = fut.result()
+                if pending:
+                    submit()
+                bar.update()
+                yield r0, c0, block
         finally:
-            for fut in running:
+            for fut, _, _ in window:
                 fut.cancel()
 
 
@@ -277,6 +316,62 @@ def _has_valid(block: np.ndarray, nodata: float | None) -> bool:
     if nodata is not None and not math.isnan(nodata):
         bad |= block == nodata
     return not bool(bad.all(axis=0).all())
+
+
+class _TileRows:
+    """Writes chunks, received in row-major chunk order, as whole rows of tiles in file order.
+
+    GDAL's tiled GeoTIFF appends each compressed tile to the file when it is complete (the
+    offsets table records where it went), so the order of the writes decides the bytes. Here
+    every write is one full-width row of tiles (``blocksize`` rows, fewer at the bottom edge),
+    top to bottom: the same sequence of GDAL calls, hence the same bytes, whatever the chunk
+    size and whichever chunk finished first. Memory: one row of chunks (the last chunk of a
+    row completes its first tile row) and one tile-row strip; never the whole output.
+    """
+
+    def __init__(self, dst: Any, bands: int, rows: int, cols: int, blocksize: int,
+                 dtype: np.dtype) -> None:
+        self.dst, self.rows, self.cols, self.bs = dst, rows, cols, blocksize
+        self.strip = np.empty((bands, min(blocksize, rows), cols), dtype)
+        self.top = 0      # first row of the tile row being filled
+        self.filled = 0   # rows of it already filled
+        self.band: list = []  # the chunks of the current chunk row: (col0, block)
+        self.band_r0 = 0
+
+    def add(self, r0: int, c0: int, block: np.ndarray) -> None:
+        if not self.band:
+            if r0 != self.top + self.filled or c0 != 0:
+                raise AssertionError(f"chunks out of row-major order at ({r0}, {c0})")
+            self.band_r0 = r0
+        self.band.append((c0, block))
+        if c0 + block.shape[2] < self.cols:
+            return
+        height = block.shape[1]
+        cursor, end = self.band_r0, self.band_r0 + height
+        while cursor < end:
+            stop = min(end, self.top + self.bs, self.rows)
+            i0, i1 = cursor - self.band_r0, stop - self.band_r0
+            s0 = cursor - self.top
+            for bc0, b in self.band:
+                self.strip[:, s0:s0 + i1 - i0, bc0:bc0 + b.shape[2]] = b[:, i0:i1]
+            self.filled += stop - cursor
+            cursor = stop
+            if self.top + self.filled in (self.top + self.bs, self.rows):
+                self._flush()
+        self.band = []
+
+    def _flush(self) -> None:
+        from rasterio.windows import Window
+
+        h = self.filled
+        data = self.strip if h == self.strip.shape[1] else np.ascontiguousarray(self.strip[:, :h])
+        self.dst.write(data, window=Window(0, self.top, self.cols, h))
+        self.top += h
+        self.filled = 0
+
+    def close(self) -> None:
+        if self.band or self.top != self.rows:
+            raise AssertionError(f"write_ortho: {self.top} of {self.rows} rows written")
 
 
 EMPTY = ("error", "warn", "ignore")
@@ -349,7 +444,6 @@ def write_ortho(
     import dask.array as da
     import rasterio
     import rasterio.shutil
-    from rasterio.windows import Window
 
     path = Path(path)
     if driver.upper() not in ("GTIFF", "COG"):
@@ -403,13 +497,16 @@ def write_ortho(
     any_valid = empty == "ignore"
     try:
         with rasterio.open(tmp, "w", **profile) as dst:
+            strips = _TileRows(dst, bands, rows, cols, int(profile["blockysize"]),
+                               np.dtype(profile["dtype"]))
             for r0, c0, block in _iter_blocks(array, scheduler, in_flight, progress):
                 block = np.asarray(block)
                 if block.dtype == np.dtype(bool):
                     block = block.astype(np.uint8)
                 if not any_valid:
                     any_valid = _has_valid(block, valid_nodata)
-                dst.write(block, window=Window(c0, r0, block.shape[2], block.shape[1]))
+                strips.add(r0, c0, block)
+            strips.close()
         if not any_valid:
             message = (f"{path}: no valid pixel to write: all {rows} x {cols} pixels are nodata "
                        f"({valid_nodata if valid_nodata is not None else 'NaN'})")

@@ -168,6 +168,7 @@ def orthorectify(
     from dask.highlevelgraph import HighLevelGraph
 
     from geoblock.io.images import open_image
+    from geoblock.models.crop import model_for_image
     from geoblock.ortho.grid import OutputGrid
     from geoblock.ortho.kernels import KERNELS
 
@@ -176,6 +177,9 @@ def orthorectify(
     if not tolerance_px >= 0:
         raise ValueError(f"orthorectify: tolerance_px must be >= 0, got {tolerance_px}")
     src = open_image(image)
+    # a crop of a scene (pixel-unit geotransform) addresses the scene model at its offset; an
+    # image whose shape differs from the model's with no crop information is refused
+    model = model_for_image(model, src)
     if grid is None:
         grid = OutputGrid.for_model(model, dem)
     dtype = np.dtype(src.dtype)

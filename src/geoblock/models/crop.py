@@ -1,0 +1,305 @@
+"""Crops of a scene: any sensor model, shifted to address a window of its image.
+
+Vendors' metadata (RPCs, DIMAP, OSSIM ``.geom``...) describe the full scene; an image is often
+a crop of it (a processing window, shareloc's 500 x 500 Ventoux crop of a 41801 x 39182
+Pleiades scene). :class:`CroppedModel` wraps **any** model for a crop whose first pixel is
+scene pixel ``(row0, col0)``: crop pixel ``(r, c)`` is scene pixel ``(r + row0, c + col0)``,
+nothing else changes (a pure shift, exact, no resampling of the geometry).
+
+:func:`model_for_image` reconciles an image with a model wherever the two meet (``geoblock
+ortho``, ``geoblock localize --image``, block files): the crop offset comes from the caller
+(``crop_offset=``) or from the raster itself (a pixel-unit geotransform, as
+``gdal_translate -srcwin`` writes on an image without CRS, read by
+:func:`geoblock.io.open_image` into :attr:`ImageSource.crop_offset
+<geoblock.io.images.ImageSource.crop_offset>`); an image whose shape differs from the
+model's with no crop information is refused with both shapes and what to pass, never
+silently placed at the scene's top-left.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from geoblock.errors import GeoblockError
+from geoblock.models.base import SensorModelBase
+from geoblock.models.parameters import ParameterSet
+from geoblock.models.protocol import SensorModel
+from geoblock.typing import ArrayLike, Float64Array, GroundCoords, ImageCoords
+
+__all__ = ["CropError", "CroppedModel", "model_for_image"]
+
+#: How far (pixels) a crop may stick out of its scene (fractional offsets, rounding).
+FIT_TOLERANCE_PX = 0.5
+
+
+class CropError(GeoblockError, ValueError):
+    """An image and a model do not fit: shapes differ with no crop offset, or the crop does not
+    lie inside the model's scene (the message gives both shapes and what to pass)."""
+
+
+def _offset(value: Any, what: str = "offset") -> tuple[float, float]:
+    try:
+        row0, col0 = (float(v) for v in value)
+    except (TypeError, ValueError) as exc:
+        raise CropError(f"CroppedModel: {what} must be (row0, col0), got {value!r}") from exc
+    if not (math.isfinite(row0) and math.isfinite(col0)):
+        raise CropError(f"CroppedModel: {what} must be finite, got {value!r}")
+    return row0, col0
+
+
+def _shape(value: Any) -> tuple[int, int]:
+    try:
+        rows, cols = (int(v) for v in value)
+        ok = all(float(v) == int(v) for v in value)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise CropError(f"CroppedModel: shape must be (rows, cols), got {value!r}") from exc
+    if not ok or rows < 1 or cols < 1:
+        raise CropError(f"CroppedModel: shape must be two positive integers, got {value!r}")
+    return rows, cols
+
+
+class CroppedModel(SensorModelBase):
+    """Any sensor model restricted to a crop of its image: a pure image-space shift.
+
+    Crop pixel ``(row, col)`` is pixel ``(row + row0, col + col0)`` of the wrapped model
+    (pixel-centre convention on both sides); ground coordinates, height range, parameters and
+    ground/parameter partials are the wrapped model's.
+
+    Parameters
+    ----------
+    model : SensorModel
+        The full scene's model (any registered model). A :class:`CroppedModel` is unwrapped:
+        a crop of a crop is one crop with the offsets added.
+    offset : (float, float)
+        ``(row0, col0)``: the scene pixel of the crop's first pixel.
+    shape : (int, int)
+        ``(rows, cols)`` of the crop.
+
+    Examples
+    --------
+    >>> from geoblock.testing.synthetic import AffineCamera
+    >>> scene = AffineCamera.example((1000, 1200))
+    >>> crop = CroppedModel(scene, (100, 200), (300, 400))
+    >>> lon, lat, h = scene.backproject(150.0, 260.0, 0.0)
+    >>> [round(float(v), 6) for v in crop.project(lon, lat, h)]
+    [50.0, 60.0]
+    """
+
+    name: ClassVar[str] = "crop"
+    schema_version: ClassVar[int] = 1
+
+    def __init__(self, model: SensorModel, offset: ArrayLike, shape: ArrayLike) -> None:
+        row0, col0 = _offset(offset)
+        if isinstance(model, CroppedModel):
+            row0 += model.offset[0]
+            col0 += model.offset[1]
+            model = model.model
+        self._model = model
+        self._offset = (row0, col0)
+        self._shape = _shape(shape)
+
+    @classmethod
+    def example(cls) -> CroppedModel:
+        """A 300 x 400 crop at row/col (100, 200) of a 1000 x 1200 pushbroom scene."""
+        from geoblock.testing.synthetic import ConstantVelocityPushbroom
+
+        return cls(ConstantVelocityPushbroom.example((1000, 1200), roll=0.01), (100.0, 200.0),
+                   (300, 400))
+
+    # ------------------------------------------------------------------ state
+    @property
+    def model(self) -> SensorModel:
+        """The wrapped (full-scene) model."""
+        return self._model
+
+    @property
+    def offset(self) -> tuple[float, float]:
+        """``(row0, col0)``: the scene pixel of the crop's first pixel."""
+        return self._offset
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._shape
+
+    @property
+    def height_range(self) -> tuple[float, float]:
+        return self._model.height_range
+
+    @property
+    def parameters(self) -> ParameterSet:
+        return self._model.parameters
+
+    def with_parameters(self, values: ArrayLike) -> Self:
+        return type(self)(self._model.with_parameters(values), self._offset, self._shape)
+
+    @property
+    def parameter_sets(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(getattr(self._model, "parameter_sets", ("default",)))
+
+    def with_parameter_set(self, name: str, **options: Any) -> Self:
+        inner = self._model.with_parameter_set(name, **options)
+        return type(self)(inner, self._offset, self._shape)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": self.name,
+            "schema_version": self.schema_version,
+            "offset": list(self._offset),
+            "shape": list(self._shape),
+            "base": self._model.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Self:
+        from geoblock.errors import SerializationError
+        from geoblock.models.registry import from_dict
+
+        for key in ("offset", "shape", "base"):
+            if key not in data:
+                raise SerializationError(f"crop model: missing field {key!r}")
+        try:
+            return cls(from_dict(data["base"]), data["offset"], data["shape"])
+        except CropError as exc:
+            raise SerializationError(f"crop model: {exc}") from exc
+
+    # ------------------------------------------------------------------ directions
+    # The public directions delegate to the wrapped model's (its statuses, its NaN handling)
+    # and shift; the kernels are the same shift on flat arrays, for SensorModelBase.
+    def project_with_status(
+        self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+    ) -> tuple[ImageCoords, np.ndarray]:
+        (row, col), status = self._model.project_with_status(lon, lat, h)
+        return ImageCoords(row - self._offset[0], col - self._offset[1]), status
+
+    def backproject_with_status(
+        self, row: ArrayLike, col: ArrayLike, h: ArrayLike
+    ) -> tuple[GroundCoords, np.ndarray]:
+        row = np.asarray(row, dtype=np.float64) + self._offset[0]
+        col = np.asarray(col, dtype=np.float64) + self._offset[1]
+        return self._model.backproject_with_status(row, col, h)
+
+    def _ground_to_image(self, lon, lat, h):
+        (row, col), status = self.project_with_status(lon, lat, h)
+        return row, col, status
+
+    def _image_to_ground(self, row, col, h):
+        (lon, lat, _), status = self.backproject_with_status(row, col, h)
+        return lon, lat, status
+
+    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """The wrapped model's: a shift does not change d(row, col)/d(x, y, z)."""
+        return self._model.partials_ground(lon, lat, h)
+
+    def partials_parameters(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """The wrapped model's: a shift does not change d(row, col)/d(parameters)."""
+        return self._model.partials_parameters(lon, lat, h)
+
+    def __repr__(self) -> str:
+        rows, cols = self._shape
+        return (f"<CroppedModel {rows}x{cols} px at row/col {self._offset[0]:g}, "
+                f"{self._offset[1]:g} of {self._model!r}>")
+
+
+# ------------------------------------------------------------------------- reconciling
+#: How a refusal names the ways out (the CLI passes its option names).
+PYTHON_NAMES = {"crop_offset": "crop_offset=(ROW0, COL0)", "no_crop": "crop=False"}
+CLI_NAMES = {"crop_offset": "--crop-offset ROW COL", "no_crop": "--no-crop"}
+
+
+def _fits(offset: tuple[float, float], shape: tuple[int, int],
+          scene: tuple[int, int]) -> bool:
+    tol = FIT_TOLERANCE_PX
+    return all(-tol <= o and o + n <= s + tol
+               for o, n, s in zip(offset, shape, scene, strict=True))
+
+
+def model_for_image(
+    model: SensorModel,
+    image: Any,
+    *,
+    crop_offset: ArrayLike | None = None,
+    crop: bool = True,
+    names: Mapping[str, str] | None = None,
+) -> SensorModel:
+    """The model that addresses ``image``'s pixels: ``model``, or a :class:`CroppedModel` of it.
+
+    Rules, in order:
+
+    1. ``crop=False``: ``model`` as it is, whatever the shapes (image pixel ``(r, c)`` is
+       model pixel ``(r, c)``; the caller says so).
+    2. ``crop_offset=(row0, col0)`` given: the image is the crop of ``model``'s scene at
+       that offset (it must lie inside the scene); the raster's own offset is ignored.
+    3. The raster states a crop offset (``image.crop_offset``, from a pixel-unit
+       geotransform): if ``model`` already has the image's shape, it is the crop's own model
+       (e.g. an RPC read with ``crop_from_geotransform=True``) and is used as it is;
+       otherwise the image must lie inside ``model``'s scene at that offset and the result
+       is a :class:`CroppedModel`.
+    4. No crop information: the shapes must be equal.
+
+    Parameters
+    ----------
+    model : SensorModel
+    image : ImageSource, str or os.PathLike
+        The raster (opened with :func:`geoblock.io.open_image`).
+    crop_offset : (float, float), optional
+        ``(row0, col0)``: the scene pixel of the image's first pixel.
+    crop : bool
+        False: use ``model`` as it is (no shift, no shape check).
+    names : mapping, optional
+        How the refusal names the ways out: ``{"crop_offset": ..., "no_crop": ...}``;
+        default the Python arguments (the CLI passes ``--crop-offset ROW COL`` and
+        ``--no-crop``).
+
+    Returns
+    -------
+    SensorModel
+
+    Raises
+    ------
+    CropError
+        The shapes differ and nothing says where the image lies in the scene, or the crop
+        does not lie inside the scene; the message gives the image, both shapes, the offset
+        and what to pass.
+    """
+    from geoblock.io.images import open_image
+
+    if not crop:
+        return model
+    say = dict(PYTHON_NAMES)
+    say.update(names or {})
+    source = open_image(image)
+    shape = tuple(int(v) for v in source.shape)
+    scene = tuple(int(v) for v in model.shape)
+    if crop_offset is not None:
+        offset = _offset(crop_offset, "crop_offset")
+        stated = "the crop offset given"
+    elif source.crop_offset is not None:
+        offset = _offset(source.crop_offset)
+        if shape == scene:
+            return model  # the crop's own model (its offset is folded in already)
+        stated = (f"its pixel-unit geotransform (a crop starting at row/col {offset[0]:g}, "
+                  f"{offset[1]:g})")
+    else:
+        if shape == scene:
+            return model
+        raise CropError(
+            f"{source.path}: the image is {shape[0]} x {shape[1]} px but the model "
+            f"({model.name!r}) describes a {scene[0]} x {scene[1]} px scene, and nothing says "
+            f"where the image lies in it (no pixel-unit geotransform): if the image is a crop "
+            f"of the scene, pass {say['crop_offset']} (the scene pixel of its first pixel); "
+            f"to use the model's pixels as they are, pass {say['no_crop']}"
+        )
+    if not _fits(offset, shape, scene):
+        hint = (" (the model has the image's shape: it already describes the crop, so give no "
+                "offset)" if shape == scene else "")
+        raise CropError(
+            f"{source.path}: the {shape[0]} x {shape[1]} px image at row/col {offset[0]:g}, "
+            f"{offset[1]:g} ({stated}) does not lie inside the model's "
+            f"{scene[0]} x {scene[1]} px scene ({model.name!r}){hint}; pass the right "
+            f"{say['crop_offset']}, or {say['no_crop']} to use the model's pixels as they are"
+        )
+    return CroppedModel(model, offset, shape)
