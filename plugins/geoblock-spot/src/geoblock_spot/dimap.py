@@ -66,6 +66,8 @@ from __future__ import annotations
 import os
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,6 +90,27 @@ EARTH_ROTATION_RAD_S = 7.2921151467e-5
 
 #: velocities within this many m/s of the positions' derivative are accepted
 _VELOCITY_TOLERANCE_M_S = 5.0
+
+# ---- physical plausibility of the fields a model is built from (issue 12, item 3); shared
+# with :mod:`geoblock_spot.dimap2`
+#: satellite distance from the Earth's centre, metres (SPOT 1-7 and Pleiades fly at 690-830 km)
+ORBIT_RADIUS_M = (6.5e6, 8.5e6)
+#: satellite speed, m/s (about 7.4-7.5 km/s, inertial or Earth-fixed)
+MAX_SPEED_M_S = 1.0e4
+#: image rows and columns (a SPOT 5 HRS segment has ~1e5 rows)
+MAX_IMAGE_SIZE = 10_000_000
+#: line period, seconds (SPOT 1-4: 1.5 ms, SPOT 5: 0.75 ms, Pleiades: 74 us)
+MAX_LINE_PERIOD_S = 1.0
+#: ``|tan|`` of a look angle (SPOT's +-27 degree mirror: 0.51)
+MAX_LOOK_TANGENT = 1.0
+#: ``|yaw|``, ``|pitch|``, ``|roll|`` of the attitude angles relative to the orbital frame, rad
+#: (SPOT 1-5 files: below 1e-3), and of the gyro angular speeds, rad/s (below 3e-5)
+MAX_ATTITUDE_ANGLE_RAD = 0.2
+MAX_ANGULAR_SPEED_RAD_S = 0.01
+#: ``| |q| - 1 |`` of a stated attitude quaternion (the files: below 1e-6)
+QUATERNION_NORM_TOLERANCE = 1e-3
+#: acquisition years accepted in time stamps
+YEAR_RANGE = (1950, 2200)
 
 #: mission location accuracy without ground control, metres (see the module docstring)
 _MISSION_ACCURACY_M = {1: 350.0, 2: 350.0, 3: 350.0, 4: 350.0, 5: 50.0}
@@ -112,6 +135,18 @@ class DimapFormatError(ModelFormatError):
         super().__init__(f"{str(path)!r}: DIMAP field {field}: {problem}")
         self.path = str(path)
         self.field = field
+
+
+@contextmanager
+def file_named(path: str | os.PathLike[str], field: str) -> Iterator[None]:
+    """Re-raise a :class:`ModelFormatError` of the core model classes (which cannot know the
+    file) as a :class:`DimapFormatError` naming ``path`` and the DIMAP ``field``."""
+    try:
+        yield
+    except DimapFormatError:
+        raise
+    except ModelFormatError as exc:
+        raise DimapFormatError(path, field, str(exc)) from None
 
 
 @dataclass(frozen=True)
@@ -516,9 +551,13 @@ class _Doc:
     def time(self, elem: ET.Element, sub: str, field: str) -> np.datetime64:
         text = self.text(elem, sub, field)
         try:
-            return np.datetime64(text.rstrip("Z"), "us")
-        except ValueError:
+            value = np.datetime64(text.rstrip("Z"), "us")
+        except (ValueError, OverflowError):
             raise self.error(field, f"{text!r} is not an ISO-8601 time") from None
+        if not YEAR_RANGE[0] <= value.astype("datetime64[Y]").astype(int) + 1970 <= YEAR_RANGE[1]:
+            raise self.error(field, f"{text!r} is not a plausible acquisition time (years "
+                             f"{YEAR_RANGE[0]}-{YEAR_RANGE[1]})")
+        return value
 
     def all(self, sub: str, field: str, minimum: int) -> list[ET.Element]:
         found = self.root.findall(sub)
@@ -531,6 +570,21 @@ class _Doc:
         return np.array(
             [[self.float(e, f"{sub}/{c}", f"{field}/{sub}/{c}") for c in "XYZ"] for e in items]
         ).reshape(-1, 3)
+
+    def size(self, elem: ET.Element, sub: str, field: str, minimum: int = 1) -> int:
+        value = self.int(elem, sub, field)
+        if not minimum <= value <= MAX_IMAGE_SIZE:
+            raise self.error(field, f"{value} is not a plausible image size (a whole number "
+                             f"from {minimum} to {MAX_IMAGE_SIZE})")
+        return value
+
+    def bounded(self, values: np.ndarray, limit: float, field: str, what: str) -> None:
+        """Refuse ``|values| >= limit`` (or NaN) in the 1-D ``values``."""
+        bad = np.flatnonzero(~(np.abs(values) < limit))
+        if bad.size:
+            i = int(bad[0])
+            raise self.error(field, f"{what} {float(values[i])!r} (sample {i + 1}) is not "
+                             f"plausible: |{what}| must be < {limit:g}")
 
     def increasing(self, t: np.ndarray, field: str) -> None:
         if t.size > 1 and not np.all(np.diff(t) > 0):
@@ -546,6 +600,10 @@ def _angle_samples(doc: _Doc, items: list[ET.Element], field: str, seconds, time
     ang = np.array(
         [[doc.float(e, k, f"{field}/{k}") for k in ("YAW", "PITCH", "ROLL")] for e in items]
     ).reshape(-1, 3)
+    limit, what = ((MAX_ANGULAR_SPEED_RAD_S, "angular speed (rad/s)") if field == _SPEEDS
+                   else (MAX_ATTITUDE_ANGLE_RAD, "angle (rad)"))
+    for k, name in enumerate(("YAW", "PITCH", "ROLL")):
+        doc.bounded(ang[:, k], limit, f"{field}/{name}", what)
     oor = np.array([(e.findtext("OUT_OF_RANGE") or "N").strip().upper() == "Y" for e in items])
     doc.increasing(t, field)
     return AttitudeSamples(t, ang, oor)
@@ -592,7 +650,7 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     file = _metadata_file(path)
     try:
         root = ET.parse(file).getroot()
-    except ET.ParseError as exc:
+    except (ET.ParseError, LookupError, ValueError) as exc:  # LookupError: unknown encoding
         raise DimapFormatError(file, "(document)", f"not well-formed XML ({exc})") from None
     except OSError as exc:
         raise GeoblockIOError(f"{str(file)!r}: cannot read ({exc})") from exc
@@ -623,16 +681,15 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     origin_text = doc.opt_text("Raster_CS/PIXEL_ORIGIN")
     origin = 1.0 if origin_text is None else doc.float(root, "Raster_CS/PIXEL_ORIGIN",
                                                        "Raster_CS/PIXEL_ORIGIN")
+    if origin not in (0.0, 1.0):
+        raise doc.error("Raster_CS/PIXEL_ORIGIN", f"{origin_text!r}: must be 0 or 1")
     cs_type = (doc.opt_text("Raster_CS/RASTER_CS_TYPE") or "POINT").upper()
     if cs_type not in ("POINT", "CELL"):
         raise doc.error("Raster_CS/RASTER_CS_TYPE", f"{cs_type!r} is neither POINT nor CELL")
     offset = origin + (0.5 if cs_type == "CELL" else 0.0)  # geoblock = DIMAP - offset
 
-    rows = doc.int(root, "Raster_Dimensions/NROWS", "Raster_Dimensions/NROWS")
-    cols = doc.int(root, "Raster_Dimensions/NCOLS", "Raster_Dimensions/NCOLS")
-    for name, value in (("NROWS", rows), ("NCOLS", cols)):
-        if value < 1:
-            raise doc.error(f"Raster_Dimensions/{name}", f"{value} must be >= 1")
+    rows = doc.size(root, "Raster_Dimensions/NROWS", "Raster_Dimensions/NROWS")
+    cols = doc.size(root, "Raster_Dimensions/NCOLS", "Raster_Dimensions/NCOLS", 2)
 
     # ---- ephemeris and the time origin
     points = doc.all(_EPHEMERIS, _EPHEMERIS, 2)
@@ -647,9 +704,18 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     pos = doc.vectors(points, "Location", _EPHEMERIS)
     vel = doc.vectors(points, "Velocity", _EPHEMERIS)
     radius = np.linalg.norm(pos, axis=1)
-    if np.any(radius < 6.3e6) or np.any(radius > 8.0e6):
+    bad = np.flatnonzero(~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1])))
+    if bad.size:
         raise doc.error(_EPHEMERIS + "/Location",
-                        "positions are not those of a SPOT orbit (radius outside 6300-8000 km)")
+                        f"point {bad[0] + 1} is {radius[bad[0]] / 1000:.6g} km from the Earth's "
+                        f"centre: not a satellite orbit (radius outside "
+                        f"{ORBIT_RADIUS_M[0] / 1000:g}-{ORBIT_RADIUS_M[1] / 1000:g} km)")
+    speed = np.linalg.norm(vel, axis=1)
+    bad = np.flatnonzero(~(speed < MAX_SPEED_M_S))
+    if bad.size:
+        raise doc.error(_EPHEMERIS + "/Velocity",
+                        f"point {bad[0] + 1} moves at {speed[bad[0]]:.6g} m/s: not a satellite "
+                        f"velocity (speed must be < {MAX_SPEED_M_S:g} m/s)")
     derivative = _position_derivative(eph_t, pos)
     err_fixed = np.abs(derivative - vel).max()
     err_inertial = np.abs(derivative - (vel - _omega_cross(pos))).max()
@@ -674,14 +740,17 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
 
     # ---- line dating
     period = doc.float(root, _TIME_STAMP + "/LINE_PERIOD", _TIME_STAMP + "/LINE_PERIOD")
-    if not period > 0:
-        raise doc.error(_TIME_STAMP + "/LINE_PERIOD", f"{period!r} must be > 0")
+    if not 0 < period <= MAX_LINE_PERIOD_S:
+        raise doc.error(_TIME_STAMP + "/LINE_PERIOD",
+                        f"{period!r} s: a line period must be > 0 and <= {MAX_LINE_PERIOD_S:g} s")
     center_time = seconds(doc.time(root, _TIME_STAMP + "/SCENE_CENTER_TIME",
                                    _TIME_STAMP + "/SCENE_CENTER_TIME"))
     center_row = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_LINE",
                            _TIME_STAMP + "/SCENE_CENTER_LINE") - offset
     center_col = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_COL",
                            _TIME_STAMP + "/SCENE_CENTER_COL") - offset
+    for name, value in (("SCENE_CENTER_LINE", center_row), ("SCENE_CENTER_COL", center_col)):
+        doc.bounded(np.array([value]), MAX_IMAGE_SIZE, f"{_TIME_STAMP}/{name}", "pixel")
 
     # ---- attitude
     raw = _angle_samples(doc, root.findall(_ANGLES), _ANGLES, seconds)
@@ -694,6 +763,13 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     q_t = np.array([seconds(doc.time(q, "Q_TIME", _QUATERNIONS + "/Q_TIME")) for q in quats])
     q = np.array([[doc.float(e, f"Q{k}", f"{_QUATERNIONS}/Q{k}") for k in range(4)]
                   for e in quats]).reshape(-1, 4)
+    doc.increasing(q_t, _QUATERNIONS + "/Q_TIME")
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
+    if bad.size:
+        raise doc.error(_QUATERNIONS + "/Q0..Q3",
+                        f"quaternion {bad[0] + 1} has norm {norm[bad[0]]:.6g}: not a unit "
+                        f"quaternion (tolerance {QUATERNION_NORM_TOLERANCE:g})")
     star = doc.opt_text(_ATTITUDES + "/Corrected_Attitudes/STAR_TRACKER_USED")
 
     # ---- look angles (first band's table)
@@ -706,20 +782,31 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     psi_y = np.array([doc.float(e, "PSI_Y", _LOOK + "/PSI_Y") for e in look])
     if not np.all(np.diff(det) > 0):
         raise doc.error(_LOOK + "/DETECTOR_ID", "detector numbers are not strictly increasing")
-    if det[0] < 1:
-        raise doc.error(_LOOK + "/DETECTOR_ID", f"detector {int(det[0])} < 1")
-    if np.any(np.abs(psi_x) >= np.pi / 2) or np.any(np.abs(psi_y) >= np.pi / 2):
-        raise doc.error(_LOOK, "look angles must be within +-90 degrees (radians expected)")
+    if det[0] < 1 or det[-1] > MAX_IMAGE_SIZE:
+        raise doc.error(_LOOK + "/DETECTOR_ID",
+                        f"detectors {int(det[0])}..{int(det[-1])}: must be from 1 to "
+                        f"{MAX_IMAGE_SIZE}")
+    for name, psi in (("PSI_X", psi_x), ("PSI_Y", psi_y)):
+        # radians expected; |tan| < 1: within +-45 degrees of the nadir
+        tangent = np.where(np.abs(psi) < np.pi / 2, np.tan(psi), np.inf)
+        doc.bounded(tangent, MAX_LOOK_TANGENT, f"{_LOOK}/{name}", "look-angle tangent")
 
     # ---- geolocation stated by the product
+    def ground_point(e: ET.Element, field: str, tags: tuple[str, str, str | None, str, str]
+                     ) -> GroundPoint:
+        lon, lat, h, row, col = (
+            0.0 if tag is None or (k == 2 and e.find(tag) is None)
+            else doc.float(e, tag, f"{field}/{tag}") for k, tag in enumerate(tags))
+        for tag, value, limit in zip(tags, (lon, lat, h, row, col),
+                                     (360.0, 90.0, 1e5, MAX_IMAGE_SIZE, MAX_IMAGE_SIZE),
+                                     strict=True):
+            if tag is not None and not abs(value) <= limit:
+                raise doc.error(f"{field}/{tag}", f"{value!r} is not plausible (|value| must "
+                                f"be <= {limit:g})")
+        return GroundPoint(lon=lon, lat=lat, h=h, row=row - offset, col=col - offset)
+
     def frame_point(e: ET.Element, field: str) -> GroundPoint:
-        return GroundPoint(
-            lon=doc.float(e, "FRAME_LON", f"{field}/FRAME_LON"),
-            lat=doc.float(e, "FRAME_LAT", f"{field}/FRAME_LAT"),
-            h=0.0,
-            row=doc.float(e, "FRAME_ROW", f"{field}/FRAME_ROW") - offset,
-            col=doc.float(e, "FRAME_COL", f"{field}/FRAME_COL") - offset,
-        )
+        return ground_point(e, field, ("FRAME_LON", "FRAME_LAT", None, "FRAME_ROW", "FRAME_COL"))
 
     vertices = tuple(frame_point(v, "Dataset_Frame/Vertex")
                      for v in root.findall("Dataset_Frame/Vertex"))
@@ -728,14 +815,8 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
                                                                 "Dataset_Frame/Scene_Center")
     tie_field = "Geoposition/Geoposition_Points/Tie_Point"
     tie_points = tuple(
-        GroundPoint(
-            lon=doc.float(t, "TIE_POINT_CRS_X", tie_field + "/TIE_POINT_CRS_X"),
-            lat=doc.float(t, "TIE_POINT_CRS_Y", tie_field + "/TIE_POINT_CRS_Y"),
-            h=doc.float(t, "TIE_POINT_CRS_Z", tie_field + "/TIE_POINT_CRS_Z")
-            if t.find("TIE_POINT_CRS_Z") is not None else 0.0,
-            row=doc.float(t, "TIE_POINT_DATA_Y", tie_field + "/TIE_POINT_DATA_Y") - offset,
-            col=doc.float(t, "TIE_POINT_DATA_X", tie_field + "/TIE_POINT_DATA_X") - offset,
-        )
+        ground_point(t, tie_field, ("TIE_POINT_CRS_X", "TIE_POINT_CRS_Y", "TIE_POINT_CRS_Z",
+                                    "TIE_POINT_DATA_Y", "TIE_POINT_DATA_X"))
         for t in root.findall(tie_field)
     )
 
@@ -753,7 +834,8 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     def opt_float(sub: str) -> float:
         return np.nan if doc.opt_text(sub) is None else doc.float(root, sub, sub)
 
-    step = doc.opt_text("Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT")
+    step_field = "Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT"
+    step = None if doc.opt_text(step_field) is None else doc.int(root, step_field, step_field)
     instrument = (doc.opt_text(_SOURCE + "/INSTRUMENT") or "") + (
         doc.opt_text(_SOURCE + "/INSTRUMENT_INDEX") or "")
     return SpotDimap(
@@ -790,7 +872,7 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
         reverse_location=simplified("Reverse_Location_Model"),
         incidence_angle_deg=opt_float(_SOURCE + "/INCIDENCE_ANGLE"),
         viewing_angle_deg=opt_float(_SOURCE + "/VIEWING_ANGLE"),
-        mirror_step_count=None if step is None else int(float(step)),
+        mirror_step_count=step,
         location_accuracy_m=_MISSION_ACCURACY_M[mission],
         location_accuracy_source=_ACCURACY_SOURCE,
     )

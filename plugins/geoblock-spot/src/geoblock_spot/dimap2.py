@@ -95,7 +95,19 @@ from geoblock.models.linescan import (
     quaternion_to_matrix,
 )
 from geoblock.models.parameters import ParameterSet
-from geoblock_spot.dimap import EARTH_ROTATION_RAD_S, DimapFormatError, GroundPoint
+from geoblock_spot.dimap import (
+    EARTH_ROTATION_RAD_S,
+    MAX_IMAGE_SIZE,
+    MAX_LINE_PERIOD_S,
+    MAX_LOOK_TANGENT,
+    MAX_SPEED_M_S,
+    ORBIT_RADIUS_M,
+    QUATERNION_NORM_TOLERANCE,
+    YEAR_RANGE,
+    DimapFormatError,
+    GroundPoint,
+    file_named,
+)
 
 __all__ = [
     "CENTRE_TOLERANCE_M",
@@ -244,7 +256,9 @@ def is_dimap2(path: str | os.PathLike[str]) -> bool:
     Cheap: looks at the first 8 KiB for the root element, then parses the file only when
     it is one of the two roots, and checks for ``Geometric_Data/Refined_Model`` or
     ``Geometric_Data/Sensor_Model_Characteristics`` (DIMAP v2 RPC files and ortho products
-    have neither, and are left to other readers).
+    have neither, and are left to other readers). A document that is not well-formed XML but
+    holds one of these elements' tags is claimed too, so that :func:`read_dimap2` names the
+    XML error instead of the file going unrecognised.
     """
     p = Path(path)
     if not p.is_file():
@@ -258,8 +272,14 @@ def is_dimap2(path: str | os.PathLike[str]) -> bool:
         return False
     try:
         root = ET.parse(p).getroot()
-    except (ET.ParseError, OSError):
+    except OSError:
         return False
+    except (ET.ParseError, LookupError, ValueError):  # LookupError: unknown encoding
+        try:
+            data = p.read_bytes()
+        except OSError:
+            return False
+        return b"<Refined_Model" in data or b"<Sensor_Model_Characteristics" in data
     if root.tag == "Dimap_Document":
         return root.find("Geometric_Data/Refined_Model") is not None
     if root.tag == "PHR_Dimap_Document":
@@ -289,7 +309,7 @@ def read_dimap2(path: str | os.PathLike[str]) -> Dimap2:
     p = Path(path)
     try:
         root = ET.parse(p).getroot()
-    except ET.ParseError as exc:
+    except (ET.ParseError, LookupError, ValueError) as exc:  # LookupError: unknown encoding
         raise DimapFormatError(p, "(document)", f"not well-formed XML ({exc})") from None
     except OSError as exc:
         raise DimapFormatError(p, "(document)", f"cannot be read ({exc})") from None
@@ -349,15 +369,25 @@ class _Doc:
     def time(self, where: str, base: ET.Element | None = None, label: str = "") -> np.datetime64:
         s = self.text(where, base, label)
         try:
+            # microseconds first: nanoseconds overflow silently outside 1678-2262
+            year = np.datetime64(s.rstrip("Z"), "us").astype("datetime64[Y]").astype(int) + 1970
+            if not YEAR_RANGE[0] <= year <= YEAR_RANGE[1]:
+                raise DimapFormatError(self.path, label + where,
+                                       f"not a plausible acquisition time (years "
+                                       f"{YEAR_RANGE[0]}-{YEAR_RANGE[1]}): {s!r}")
             return np.datetime64(s.rstrip("Z"), "ns")
-        except ValueError:
+        except (ValueError, OverflowError) as exc:
+            if isinstance(exc, DimapFormatError):
+                raise
             raise DimapFormatError(self.path, label + where,
                                    f"not an ISO-8601 UTC time: {s!r}") from None
 
-    def integer(self, where: str, base: ET.Element | None = None, label: str = "") -> int:
+    def integer(self, where: str, base: ET.Element | None = None, label: str = "",
+                maximum: float = MAX_IMAGE_SIZE, minimum: int = 1) -> int:
         v = self.number(where, base, label)
-        if v != int(v) or v < 1:
-            raise DimapFormatError(self.path, label + where, f"must be a positive integer, got {v}")
+        if v != int(v) or not minimum <= v <= maximum:
+            raise DimapFormatError(self.path, label + where,
+                                   f"must be a whole number from {minimum} to {maximum:g}, got {v}")
         return int(v)
 
 
@@ -415,6 +445,19 @@ def _ephemeris(doc: _Doc, points: list[ET.Element], field: str, pos_tag: str, ve
             raise DimapFormatError(doc.path, f"{field}/{pos_tag}", f"unit {unit!r}, expected m")
     if np.any(~(np.diff(t) > 0)):
         raise DimapFormatError(doc.path, field, "point times are not strictly increasing")
+    radius = np.linalg.norm(pos, axis=1)
+    bad = np.flatnonzero(~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1])))
+    if bad.size:
+        raise DimapFormatError(doc.path, f"{field}[{bad[0]}]/{pos_tag}",
+                               f"{radius[bad[0]] / 1000:.6g} km from the Earth's centre: not a "
+                               f"satellite orbit (radius outside {ORBIT_RADIUS_M[0] / 1000:g}-"
+                               f"{ORBIT_RADIUS_M[1] / 1000:g} km)")
+    speed = np.linalg.norm(vel, axis=1)
+    bad = np.flatnonzero(~(speed < MAX_SPEED_M_S))
+    if bad.size:
+        raise DimapFormatError(doc.path, f"{field}[{bad[0]}]/{vel_tag}",
+                               f"{speed[bad[0]]:.6g} m/s: not a satellite velocity (speed must "
+                               f"be < {MAX_SPEED_M_S:g} m/s)")
     return t, pos, vel, _velocity_frame(doc, field, t, pos, vel)
 
 
@@ -424,8 +467,9 @@ def _line_period(doc: _Doc, where: str, default_unit: str) -> float:
     if unit not in _LINE_PERIOD_UNITS:
         raise DimapFormatError(doc.path, where, f"unknown unit {unit!r}")
     value = doc.number(where) * _LINE_PERIOD_UNITS[unit]
-    if not value > 0:
-        raise DimapFormatError(doc.path, where, f"must be > 0, got {value}")
+    if not 0 < value <= MAX_LINE_PERIOD_S:
+        raise DimapFormatError(doc.path, where, f"must be > 0 and <= {MAX_LINE_PERIOD_S:g} s, "
+                                                f"got {value!r} s")
     return value
 
 
@@ -435,9 +479,15 @@ def _points(doc: _Doc, base: ET.Element | None) -> tuple[tuple[GroundPoint, ...]
         return (), None
 
     def point(e: ET.Element, label: str) -> GroundPoint:
-        return GroundPoint(lon=doc.number("LON", e, label), lat=doc.number("LAT", e, label),
-                           h=0.0, row=doc.number("ROW", e, label) - 1.0,
-                           col=doc.number("COL", e, label) - 1.0)
+        values = {}
+        for tag, limit in (("LON", 360.0), ("LAT", 90.0), ("ROW", MAX_IMAGE_SIZE),
+                           ("COL", MAX_IMAGE_SIZE)):
+            values[tag] = doc.number(tag, e, label)
+            if not abs(values[tag]) <= limit:
+                raise DimapFormatError(doc.path, label + tag, f"{values[tag]!r} is not plausible "
+                                                              f"(|value| must be <= {limit:g})")
+        return GroundPoint(lon=values["LON"], lat=values["LAT"], h=0.0, row=values["ROW"] - 1.0,
+                           col=values["COL"] - 1.0)
 
     vertices = tuple(point(e, f"Vertex[{i}]/") for i, e in enumerate(base.findall("Vertex")))
     c = base.find("Center")
@@ -464,7 +514,7 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
     profile = doc.text("Metadata_Identification/METADATA_PROFILE")
     _check_raster_origin(doc, "Geoposition/Raster_CRS/PIXEL_ORIGIN")
     rows = doc.integer("Raster_Data/Raster_Dimensions/NROWS")
-    cols = doc.integer("Raster_Data/Raster_Dimensions/NCOLS")
+    cols = doc.integer("Raster_Data/Raster_Dimensions/NCOLS", minimum=2)
     rm = "Geometric_Data/Refined_Model"
     crs = root.find(f"{rm}/Coordinate_Reference_System/Geodetic_CRS")
     if crs is not None:
@@ -496,10 +546,21 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
                         for i, e in enumerate(table)])
         q = np.array([[doc.number(f"Q{k}", e, f"{field}[{i}]/") for k in range(4)]
                       for i, e in enumerate(table)])
+        if np.any(~(np.diff(q_t) > 0)):
+            i = int(np.flatnonzero(~(np.diff(q_t) > 0))[0]) + 1
+            raise DimapFormatError(path, f"{field}[{i}]/TIME",
+                                   "quaternion times are not strictly increasing")
+        norm = np.linalg.norm(q, axis=1)
+        bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
+        if bad.size:
+            raise DimapFormatError(path, f"{field}[{bad[0]}]/Q0..Q3",
+                                   f"norm {norm[bad[0]]:.6g}: not a unit quaternion "
+                                   f"(tolerance {QUATERNION_NORM_TOLERANCE:g})")
         source = field
     elif poly_node is not None:
         poly = _quaternion_polynomial(doc, poly_node, f"{att}/Polynomial_Quaternions", start)
         source = f"{att}/Polynomial_Quaternions"
+        _check_unit(doc, source, poly, rows, line_period)
     else:
         raise DimapFormatError(path, att, "neither Quaternion_List nor Polynomial_Quaternions")
 
@@ -515,13 +576,16 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
     look = doc.node("Polynomial_Look_Angles", base, label)
     psi_x = _los_coefficients(doc, look, "XLOS", label + "Polynomial_Look_Angles/")
     psi_y = _los_coefficients(doc, look, "YLOS", label + "Polynomial_Look_Angles/")
+    for name, c in (("XLOS", psi_x), ("YLOS", psi_y)):
+        _check_look(doc, f"{label}Polynomial_Look_Angles/{name}_*", c, first, cols)
     biases = cal.find("Instrument_Biases")
     if biases is not None:
         for name in ("YAW", "PITCH", "ROLL"):
-            v = biases.findtext(name)
-            if v is not None and float(v) != 0.0:
+            if biases.find(name) is not None and doc.number(
+                    name, biases, "Instrument_Calibration/Instrument_Biases/") != 0.0:
                 raise DimapFormatError(path, f"Instrument_Calibration/Instrument_Biases/{name}",
-                                       f"non-zero instrument bias {v!r} is not supported")
+                                       f"non-zero instrument bias {biases.findtext(name)!r} is "
+                                       "not supported")
 
     mission = " ".join(x for x in (
         root.findtext("Dataset_Sources/Source_Identification/Strip_Source/MISSION", "").strip(),
@@ -538,7 +602,7 @@ def _read_phr_internal(path: Path, root: ET.Element) -> Dimap2:
     profile = doc.text("Metadata_Identification/METADATA_PROFILE")
     _check_raster_origin(doc, "Product_Frame/PIXEL_ORIGIN")
     rows = doc.integer("Raster_Dimensions/NROWS")
-    cols = doc.integer("Raster_Dimensions/NCOLS")
+    cols = doc.integer("Raster_Dimensions/NCOLS", minimum=2)
     smc = "Geometric_Data/Sensor_Model_Characteristics"
     start = doc.time(f"{smc}/UTC_Sensor_Model_Range/START")
     end_s = _seconds(doc.time(f"{smc}/UTC_Sensor_Model_Range/END"), start)
@@ -550,6 +614,7 @@ def _read_phr_internal(path: Path, root: ET.Element) -> Dimap2:
     att = doc.node(f"{smc}/Sensor_Attitudes")
     poly = _quaternion_polynomial(doc, att, f"{smc}/Sensor_Attitudes", start,
                                   models="Polynomial_Models/")
+    _check_unit(doc, f"{smc}/Sensor_Attitudes/Polynomial_Models", poly, rows, line_period)
     viewing = f"{smc}/Sensor_Viewing_Model"
     first = doc.integer(f"{viewing}/Position_In_Retina/FIRST_COL")
     psi = []
@@ -557,10 +622,11 @@ def _read_phr_internal(path: Path, root: ET.Element) -> Dimap2:
         where = f"{viewing}/Viewing_Directions/{name}"
         degree = doc.number(f"{where}/DEGREE")
         c = doc.numbers(f"{where}/COEFFICIENTS")
-        if c.size != int(degree) + 1:
+        if c.size != degree + 1:
             raise DimapFormatError(path, f"{where}/COEFFICIENTS",
-                                   f"DEGREE {degree:g} needs {int(degree) + 1} coefficients, "
+                                   f"DEGREE {degree:g} needs {degree + 1:g} coefficients, "
                                    f"got {c.size}")
+        _check_look(doc, f"{where}/COEFFICIENTS", c, first, cols)
         psi.append(c)
     platform = " ".join(root.findtext(f"Data_Strip/Data_Strip_Identification/{k}", "").strip()
                         for k in ("PLATFORM_NAME", "PLATFORM_SERIAL_NUMBER")).strip()
@@ -585,6 +651,35 @@ def _los_coefficients(doc: _Doc, node: ET.Element, prefix: str, label: str) -> n
     return np.array(values)
 
 
+def _check_unit(doc: _Doc, field: str, poly: QuaternionPolynomial, rows: int,
+                line_period: float) -> None:
+    """The attitude polynomials must give unit quaternions over the image's rows."""
+    t = np.linspace(-0.5, rows - 0.5, 101) * line_period
+    with np.errstate(all="ignore"):
+        tau = (t - poly.offset_s) / poly.scale_s
+        q = np.stack([np.polynomial.polynomial.polyval(tau, c) for c in poly.coefficients], -1)
+        norm = np.linalg.norm(q, axis=-1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
+    if bad.size:
+        raise DimapFormatError(doc.path, f"{field}/Q0..Q3",
+                               f"the polynomials give a quaternion of norm {norm[bad[0]]:.6g} at "
+                               f"{t[bad[0]]:.3f} s after START: not a unit quaternion (tolerance "
+                               f"{QUATERNION_NORM_TOLERANCE:g})")
+
+
+def _check_look(doc: _Doc, field: str, coefficients: np.ndarray, first: int, cols: int) -> None:
+    """The look-angle tangents of every detector of the image must be finite and small."""
+    d = np.arange(cols, dtype=np.float64) + (first - 1)
+    with np.errstate(all="ignore"):
+        tangent = np.polynomial.polynomial.polyval(d, coefficients)
+    bad = np.flatnonzero(~(np.abs(tangent) < MAX_LOOK_TANGENT))
+    if bad.size:
+        raise DimapFormatError(doc.path, field,
+                               f"the look-angle tangent of column {bad[0]} is "
+                               f"{tangent[bad[0]]!r}: not plausible (|tan| must be < "
+                               f"{MAX_LOOK_TANGENT:g})")
+
+
 def _quaternion_polynomial(doc: _Doc, node: ET.Element, where: str, start: np.datetime64,
                            models: str = "") -> QuaternionPolynomial:
     coefficients = []
@@ -592,9 +687,9 @@ def _quaternion_polynomial(doc: _Doc, node: ET.Element, where: str, start: np.da
         label = f"{where}/{models}Q{k}/"
         c = doc.numbers(f"{models}Q{k}/COEFFICIENTS", node, f"{where}/")
         degree = doc.number("DEGREE", doc.node(f"{models}Q{k}", node, f"{where}/"), label)
-        if c.size != int(degree) + 1:
+        if c.size != degree + 1:
             raise DimapFormatError(doc.path, f"{label}COEFFICIENTS",
-                                   f"DEGREE {degree:g} needs {int(degree) + 1} coefficients, "
+                                   f"DEGREE {degree:g} needs {degree + 1:g} coefficients, "
                                    f"got {c.size}")
         coefficients.append(c)
     width = max(c.size for c in coefficients)
@@ -652,11 +747,24 @@ def dimap2_model(
         frame or time convention not understood).
     """
     meta = source if isinstance(source, Dimap2) else read_dimap2(source)
+    if accuracy_m is not None:
+        try:
+            accuracy = float(accuracy_m)
+        except (TypeError, ValueError):
+            accuracy = float("nan")
+        if not (np.isfinite(accuracy) and accuracy > 0):
+            raise DimapFormatError(meta.path, "(option accuracy_m)",
+                                   f"the location accuracy must be finite and > 0 metres, got "
+                                   f"{accuracy_m!r}")
     rows, cols = meta.shape
     psi_x, psi_y = meta.look_tangents(cols)
-    look = LookDirections.from_tan_angles(psi_y, -psi_x)
-    ephemeris = Ephemeris(meta.ephemeris_time_s, meta.position_m, meta.earth_fixed_velocity_m_s())
-    line_times = LineTimes(0.0, 0.0, meta.line_period_s)
+    with file_named(meta.path, "Polynomial_Look_Angles"):
+        look = LookDirections.from_tan_angles(psi_y, -psi_x)
+    with file_named(meta.path, "Ephemeris/Point_List"):
+        ephemeris = Ephemeris(meta.ephemeris_time_s, meta.position_m,
+                              meta.earth_fixed_velocity_m_s())
+    with file_named(meta.path, "LINE_PERIOD"):
+        line_times = LineTimes(0.0, 0.0, meta.line_period_s)
     t_first, t_last = -0.5 * meta.line_period_s, (rows - 0.5) * meta.line_period_s
     if meta.quaternion_polynomial is not None:
         # the search span of LinescanModel (rows plus max(half the image, 1 s) each side),
@@ -666,10 +774,12 @@ def dimap2_model(
         lo, hi = max(t_first - margin, e0), min(t_last + margin, e1)
         n = int(np.ceil((hi - lo) / attitude_step_s)) + 1
         t_att = lo + np.arange(n) * attitude_step_s
-        attitude = Attitude(t_att, meta.quaternion_polynomial.at(t_att), frame="ecef")
+        with file_named(meta.path, meta.attitude_source), np.errstate(all="ignore"):
+            attitude = Attitude(t_att, meta.quaternion_polynomial.at(t_att), frame="ecef")
     else:
         t_q = meta.quaternion_time_s
-        span = Attitude(t_q, meta.quaternions, frame="ecef").valid_span_s
+        with file_named(meta.path, meta.attitude_source):
+            span = Attitude(t_q, meta.quaternions, frame="ecef").valid_span_s
         if not (span[0] <= t_first and t_last <= span[1]):
             raise DimapFormatError(
                 meta.path, meta.attitude_source,
@@ -681,7 +791,8 @@ def dimap2_model(
         # velocity (ASP extrapolateAtStartTime/EndTime) over the ephemeris' span
         t_att, q_att = _extend_table(meta.quaternion_time_s, meta.quaternions,
                                      *ephemeris.valid_span_s)
-        attitude = Attitude(t_att, q_att, frame="ecef")
+        with file_named(meta.path, meta.attitude_source):
+            attitude = Attitude(t_att, q_att, frame="ecef")
 
     for what, span, field in (("attitude", attitude.valid_span_s, meta.attitude_source),
                               ("ephemeris", ephemeris.valid_span_s, "Ephemeris/Point_List")):
@@ -692,22 +803,24 @@ def dimap2_model(
                 f"{meta.epoch}) does not cover the image's rows ({t_first:.3f} s to "
                 f"{t_last:.3f} s)")
 
-    model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
-                          epoch=meta.epoch, height_range=height_range,
-                          location_accuracy_m=accuracy_m)
+    with file_named(meta.path, "(model)"):
+        model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
+                              epoch=meta.epoch, height_range=height_range,
+                              location_accuracy_m=accuracy_m)
     if meta.centre is not None:
         _check_centre(meta, model)
     if isinstance(parameters, ParameterSet):
-        return model.replace(parameters=parameters)
+        with file_named(meta.path, "(model)"):
+            return model.replace(parameters=parameters)
     if parameters == "linescan":
         return model
     if parameters == "dg":
         if accuracy_m is None:
-            raise ParameterSetError("parameters='dg' needs accuracy_m (the product's location "
-                                    "accuracy, 1 sigma, metres)")
+            raise ParameterSetError(f"{str(meta.path)!r}: parameters='dg' needs accuracy_m (the "
+                                    "product's location accuracy, 1 sigma, metres)")
         return model.with_parameter_set("dg")
-    raise ParameterSetError(f"parameters must be 'linescan', 'dg' or a ParameterSet, got "
-                     f"{parameters!r}")
+    raise ParameterSetError(f"{str(meta.path)!r}: parameters must be 'linescan', 'dg' or a "
+                            f"ParameterSet, got {parameters!r}")
 
 
 def _extend_table(t: np.ndarray, q: np.ndarray, lo: float, hi: float,

@@ -69,9 +69,12 @@ from geoblock.models.linescan import (
 )
 from geoblock.models.parameters import ParameterSet
 from geoblock_spot.dimap import (
+    _LOOK,
     EARTH_ROTATION_RAD_S,
+    MAX_IMAGE_SIZE,
     DimapFormatError,
     SpotDimap,
+    file_named,
     read_dimap,
 )
 
@@ -165,13 +168,19 @@ def spot_dimap_model(
     """
     dimap = source if isinstance(source, SpotDimap) else read_dimap(source)
     rows, cols = dimap.shape[0], dimap.scene_width
+    if cols > MAX_IMAGE_SIZE:
+        raise DimapFormatError(dimap.path, "Geoposition/Geoposition_Points/Tie_Point",
+                               f"the geolocation refers to a {cols}-column scene: not plausible")
     psi_x, psi_y = dimap.look_angles(cols)  # refuses a table that doesn't cover the image
-    look = LookDirections.from_tan_angles(np.tan(psi_x), -np.tan(psi_y))
+    with file_named(dimap.path, _LOOK):
+        look = LookDirections.from_tan_angles(np.tan(psi_x), -np.tan(psi_y))
 
-    ephemeris = Ephemeris(dimap.ephemeris_time_s, dimap.position_m,
-                          dimap.earth_fixed_velocity_m_s())
-    line_times = LineTimes(dimap.scene_center_row, dimap.scene_center_time_s,
-                           dimap.line_period_s)
+    with file_named(dimap.path, "Data_Strip/Ephemeris/Points"):
+        ephemeris = Ephemeris(dimap.ephemeris_time_s, dimap.position_m,
+                              dimap.earth_fixed_velocity_m_s())
+    with file_named(dimap.path, "Data_Strip/Sensor_Configuration/Time_Stamp"):
+        line_times = LineTimes(dimap.scene_center_row, dimap.scene_center_time_s,
+                               dimap.line_period_s)
     t_first, t_last = (float(t) for t in line_times.time([-0.5, rows - 0.5]))
 
     att_t, ypr, source_kind = dimap.attitude_angles()
@@ -187,7 +196,8 @@ def spot_dimap_model(
         m_ef = orbital_frame(pos, vel)
         m_in = orbital_frame(pos, vel + _omega_cross(pos))
         r_att = np.swapaxes(m_ef, -1, -2) @ m_in @ r_att
-    attitude = Attitude(att_t, matrix_to_quaternion(r_att), frame="orbital")
+    with file_named(dimap.path, "Data_Strip/Satellite_Attitudes"):
+        attitude = Attitude(att_t, matrix_to_quaternion(r_att), frame="orbital")
 
     for what, span, field in (
         ("attitude", attitude.valid_span_s, "Data_Strip/Satellite_Attitudes"),
@@ -201,15 +211,16 @@ def spot_dimap_model(
                 f"does not cover the image's rows ({t_first:.3f} s to {t_last:.3f} s)",
             )
 
-    model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
-                          epoch=dimap.epoch, height_range=height_range,
-                          location_accuracy_m=dimap.location_accuracy_m)
-    if isinstance(parameters, ParameterSet):
-        return model.replace(parameters=parameters)
-    if parameters in ("dg", "linescan"):
-        return model.with_parameter_set(parameters)
-    raise ParameterSetError(f"parameters must be 'dg', 'linescan' or a ParameterSet, got "
-                            f"{parameters!r}")
+    with file_named(dimap.path, "(model)"):
+        model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
+                              epoch=dimap.epoch, height_range=height_range,
+                              location_accuracy_m=dimap.location_accuracy_m)
+        if isinstance(parameters, ParameterSet):
+            return model.replace(parameters=parameters)
+        if parameters in ("dg", "linescan"):
+            return model.with_parameter_set(parameters)
+    raise ParameterSetError(f"{str(dimap.path)!r}: parameters must be 'dg', 'linescan' or a "
+                            f"ParameterSet, got {parameters!r}")
 
 
 @dataclass(frozen=True, eq=False)
