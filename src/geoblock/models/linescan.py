@@ -913,6 +913,17 @@ class LinescanModel(SensorModelBase):
         a0, a1 = self._attitude.valid_span_s
         return max(t0, e0, a0), min(t1, e1, a1)
 
+    # ------------------------------------------------------------------ domain
+    #: heights farther than the larger of this and the span of :attr:`height_range` outside
+    #: that range are OUT_OF_DOMAIN (both directions): the model converges there (at -10^6 m
+    #: too), but no image of the Earth's surface is meant
+    height_margin_m: ClassVar[float] = 10_000.0
+
+    def _height_outside(self, h: np.ndarray) -> np.ndarray:
+        h0, h1 = self._height_range
+        margin = max(h1 - h0, self.height_margin_m)
+        return ~((h >= h0 - margin) & (h <= h1 + margin))
+
     # ------------------------------------------------------------------ image -> ground
     def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         t = self._line_times.time(row)
@@ -921,6 +932,7 @@ class LinescanModel(SensorModelBase):
         lon, lat, _, status = coords.intersect_height(pos, u, h, self.intersection_tolerance_m,
                                                       self.intersection_max_iterations)
         status[~np.all(np.isfinite(pos), axis=1) | ~np.all(np.isfinite(u), axis=1)] = _OUT
+        status[self._height_outside(h)] = _OUT
         return lon, lat, status
 
     # ------------------------------------------------------------------ ground -> image
@@ -1012,6 +1024,19 @@ class LinescanModel(SensorModelBase):
         return t_out, col_out, status
 
     def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        # no place on the Earth (lon=1e300 is some longitude once in sin/cos) or a height far
+        # outside the model's range: OUT_OF_DOMAIN, not solved
+        outside = (~((np.abs(lon) <= 540.0) & (np.abs(lat) <= 90.0))
+                   | self._height_outside(h))
+        if np.any(outside):
+            row = np.full(lon.shape, np.nan)
+            col = np.full(lon.shape, np.nan)
+            status = np.full(lon.shape, _OUT, dtype=np.uint8)
+            keep = ~outside
+            if np.any(keep):
+                row[keep], col[keep], status[keep] = self._ground_to_image(
+                    lon[keep], lat[keep], h[keep])
+            return row, col, status
         g = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
         t, col, status = self._solve_time(g)
         return self._line_times.row(t), col, status

@@ -105,10 +105,25 @@ def _ratio_derivatives(cn, cd, L, P, H):
     return r, (n_l - r * d_l) / d, (n_p - r * d_p) / d, (n_h - r * d_h) / d
 
 
+#: longitudes beyond this magnitude are no position on the Earth in any convention
+#: (-180..180, 0..360, and unwrapped tracks up to half a turn beyond): OUT_OF_DOMAIN
+LON_LIMIT = 540.0
+
+
+@njit(inline="always")
+def _off_earth(lon, lat):
+    """Whether (lon, lat) is no place on the Earth: wrapping such a longitude modulo 360
+    would land it somewhere in the model's domain (lon=1e300 projected as a valid point)."""
+    return not (abs(lon) <= LON_LIMIT and abs(lat) <= 90.0)
+
+
 @njit(inline="always")
 def _outside(prm, lon, lat, L, P, H):
     limit = prm[LIMIT]
-    if abs(L) > limit or abs(P) > limit or abs(H) > prm[HEIGHT_LIMIT]:
+    # written so that NaN (a non-finite normalised coordinate) is outside too
+    if not (abs(L) <= limit and abs(P) <= limit and abs(H) <= prm[HEIGHT_LIMIT]):
+        return True
+    if _off_earth(lon, lat):
         return True
     if prm[HAS_BOX] != 0.0:
         span_lon = prm[MAX_LONG] - prm[MIN_LONG]
@@ -134,6 +149,8 @@ def _project_one(x, y, z, prm, coef):  # pragma: no cover - numba
     """One point of :func:`project`: (row, col, status)."""
     if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
         return np.nan, np.nan, INVALID_INPUT
+    if _off_earth(x, y):  # before wrapping: 1e300 modulo 360 is some longitude
+        return np.nan, np.nan, OUT_OF_DOMAIN
     L = _wrap_dlon(x, prm[LONG_OFF]) / prm[LONG_SCALE]
     P = (y - prm[LAT_OFF]) / prm[LAT_SCALE]
     H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]

@@ -10,10 +10,10 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from geoblock import GroundCoords, ImageCoords, ParameterSet, SensorModelBase, coords
-from geoblock.errors import SerializationError
+from geoblock.errors import ModelFormatError, SerializationError
 from geoblock.typing import ArrayLike, Float64Array
 from geoblock_rpc import _kernels
-from geoblock_rpc.rpc00b import Rpc00b
+from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 
 __all__ = ["RpcModel"]
 
@@ -46,6 +46,23 @@ def _flat(*arrays: ArrayLike, names: tuple[str, ...]) -> tuple[tuple[int, ...], 
         return arrs[0].shape, [np.ascontiguousarray(a).ravel() for a in arrs]
     out = broadcast_float64(**dict(zip(names, arrays, strict=True)))
     return out[0].shape, [np.ascontiguousarray(a).ravel() for a in out]
+
+
+def _image_shape(shape: Any, source: str) -> tuple[int, int]:
+    """``(rows, cols)`` as whole numbers of pixels in 1 .. MAX_PIXELS, or ModelFormatError."""
+    try:
+        values = [float(v) for v in shape]
+    except (TypeError, ValueError):
+        values = []
+    if len(values) != 2 or any(isinstance(v, bool) for v in shape):
+        raise ModelFormatError(f"{source}: image shape must be (rows, cols), got {shape!r}")
+    for axis, value in zip(("rows", "cols"), values, strict=True):
+        if not (1 <= value <= MAX_PIXELS and value == math.floor(value)):
+            raise ModelFormatError(
+                f"{source}: image {axis} {value!r} is not a whole number of pixels in "
+                f"1..{MAX_PIXELS:g} (shape {tuple(shape)!r})"
+            )
+    return int(values[0]), int(values[1])
 
 
 class RpcModel(SensorModelBase):
@@ -94,21 +111,23 @@ class RpcModel(SensorModelBase):
     ) -> None:
         if not isinstance(rpc, Rpc00b):
             raise TypeError(f"RpcModel needs an Rpc00b, got {type(rpc).__name__}")
+        rpc.check_plausible()
         self._rpc = rpc
         if shape is None:
             shape = (
                 max(1, math.ceil(rpc.line_off + abs(rpc.line_scale) + 0.5)),
                 max(1, math.ceil(rpc.samp_off + abs(rpc.samp_scale) + 0.5)),
             )
-        self._shape = (int(shape[0]), int(shape[1]))
-        if min(self._shape) < 1:
-            raise ValueError(f"RpcModel: shape must be positive, got {self._shape}")
-        self._domain_limit = float(domain_limit)
-        self._height_limit = float(height_limit)
-        if not (self._domain_limit >= 1.0 and self._height_limit >= 1.0):
-            raise ValueError(
-                f"RpcModel: domain_limit and height_limit must be >= 1, got {domain_limit!r}, "
-                f"{height_limit!r}"
+        self._shape = _image_shape(shape, rpc.source)
+        try:
+            self._domain_limit = float(domain_limit)
+            self._height_limit = float(height_limit)
+        except (TypeError, ValueError):
+            self._domain_limit = self._height_limit = math.nan
+        if not (1.0 <= self._domain_limit < math.inf and 1.0 <= self._height_limit < math.inf):
+            raise ModelFormatError(
+                f"{rpc.source}: RpcModel domain_limit and height_limit must be finite and >= 1, "
+                f"got {domain_limit!r}, {height_limit!r}"
             )
         box = (
             (rpc.min_long, rpc.max_long, rpc.min_lat, rpc.max_lat)
@@ -198,6 +217,8 @@ class RpcModel(SensorModelBase):
                        height_limit=data.get("height_limit", 5.0))
         except KeyError as exc:
             raise SerializationError(f"rpc model dictionary misses {exc}") from None
+        except ModelFormatError as exc:  # the JSON reader names the file of a SerializationError
+            raise SerializationError(str(exc)) from exc
 
     def _ground_seed(self) -> tuple[float, float]:
         return self._rpc.long_off, self._rpc.lat_off

@@ -849,6 +849,7 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
         extra["crop_offset"] = (row0, col0)
         if image is None and extra.get("crop_source") is None:
             shape = None  # the full image's shape no longer applies
+    rpc.check_plausible()  # physically possible values (names the file and the field)
     return rpc, shape, extra
 
 

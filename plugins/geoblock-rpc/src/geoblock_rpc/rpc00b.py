@@ -24,7 +24,7 @@ import numpy as np
 
 from geoblock.errors import ModelFormatError
 
-__all__ = ["GDAL_KEYS", "TERMS", "Rpc00b", "evaluate_terms"]
+__all__ = ["GDAL_KEYS", "LIMITS", "TERMS", "Rpc00b", "evaluate_terms"]
 
 #: RPC00B term order (GDAL, NITF RPC00B, DigitalGlobe RPB, DIMAP v2 all use it)
 TERMS: tuple[str, ...] = (
@@ -38,6 +38,45 @@ _SCALARS = (
 )
 _POLYS = ("line_num", "line_den", "samp_num", "samp_den")
 _OPTIONAL = ("min_long", "min_lat", "max_long", "max_lat", "err_bias", "err_rand")
+
+#: ``ERR_BIAS``/``ERR_RAND`` value meaning "unknown" (GDAL metadata, RPB and _RPC.TXT writers)
+UNKNOWN_ERROR = -1.0
+#: largest image offset, scale or size, pixels (the largest real scene here has 135 312 rows)
+MAX_PIXELS = 1e7
+#: largest magnitude of a coefficient relative to the constant term of its ratio's
+#: denominator (real RPCs: below 300), and in absolute value
+MAX_COEFFICIENT = 1e10
+MAX_COEFFICIENT_ABS = 1e12
+#: largest distance, in image scales (LINE_SCALE, SAMP_SCALE), from the image centre to the
+#: projection of the ground centre: ``|NUM_COEFF_1 / DEN_COEFF_1|`` (real RPCs: up to 4.24,
+#: PlanetScope L1A; 0.04 otherwise)
+MAX_CENTRE_OFFSET = 10.0
+#: largest stretch (singular value of the normalised ground -> image Jacobian at the centre),
+#: and smallest as its inverse
+MAX_STRETCH = 1e4
+#: largest vendor accuracy, metres (NITF RPC00B's ERR_BIAS field holds at most 9999.99)
+MAX_ERROR_M = 1e5
+
+#: field -> (lowest, highest, unit) of what an RPC of the Earth can hold; for scales, the
+#: smallest and largest magnitude (a scale may be negative: LAT_SCALE of PlanetScope files)
+LIMITS: dict[str, tuple[float, float, str]] = {
+    "lat_off": (-90.0, 90.0, "degrees"),
+    "long_off": (-180.0, 360.0, "degrees (-180..180 or 0..360)"),
+    "height_off": (-1e4, 1e5, "metres"),
+    "line_off": (-MAX_PIXELS, MAX_PIXELS, "pixels"),
+    "samp_off": (-MAX_PIXELS, MAX_PIXELS, "pixels"),
+    "lat_scale": (1e-7, 90.0, "degrees"),
+    "long_scale": (1e-7, 180.0, "degrees"),
+    "height_scale": (1e-2, 1e5, "metres"),
+    "line_scale": (0.5, MAX_PIXELS, "pixels"),
+    "samp_scale": (0.5, MAX_PIXELS, "pixels"),
+    "min_lat": (-90.0, 90.0, "degrees"),
+    "max_lat": (-90.0, 90.0, "degrees"),
+    "min_long": (-360.0, 360.0, "degrees"),
+    "max_long": (-360.0, 360.0, "degrees"),
+    "err_bias": (0.0, MAX_ERROR_M, "metres"),
+    "err_rand": (0.0, MAX_ERROR_M, "metres"),
+}
 
 #: field name -> GDAL ``RPC`` metadata-domain key
 GDAL_KEYS: dict[str, str] = {
@@ -124,14 +163,107 @@ class Rpc00b:
         for name in _OPTIONAL:
             value = getattr(self, name)
             if value is not None:
-                value = float(value)
-                if not math.isfinite(value) or (name.startswith("err_") and value < 0):
-                    value = None  # -1 means unknown in GDAL metadata
+                try:
+                    value = float(value)
+                except (TypeError, ValueError):
+                    raise ModelFormatError(
+                        f"{self.source}: {GDAL_KEYS[name]} is not a number: {value!r}"
+                    ) from None
+                if not math.isfinite(value):
+                    raise ModelFormatError(f"{self.source}: {GDAL_KEYS[name]} is not finite")
+                if name.startswith("err_") and value < 0:
+                    if value != UNKNOWN_ERROR:
+                        raise ModelFormatError(
+                            f"{self.source}: {GDAL_KEYS[name]} {value!r} is negative (an "
+                            "accuracy in metres, or -1 for unknown)"
+                        )
+                    value = None  # -1 means unknown in GDAL metadata and RPC writers
                 object.__setattr__(self, name, value)
         if self.line_den[0] == 0.0 or self.samp_den[0] == 0.0:
             raise ModelFormatError(
                 f"{self.source}: the constant term of LINE_DEN_COEFF or SAMP_DEN_COEFF is zero"
             )
+
+    # ------------------------------------------------------------------ plausibility
+    def check_plausible(self) -> None:
+        """Refuse values no real RPC can have (:data:`LIMITS`), naming the field and source.
+
+        Construction checks only what the arithmetic needs (finite numbers, non-zero scales
+        and constant denominator terms); this checks what is physically possible: offsets on
+        the Earth and within :data:`MAX_PIXELS` of the image, scales of at most a hemisphere,
+        100 km of height or :data:`MAX_PIXELS`, normalised coefficients of at most
+        :data:`MAX_COEFFICIENT`, a ground centre that projects within
+        :data:`MAX_CENTRE_OFFSET` image scales of the image centre, a ground box mapped onto
+        the image box within a factor :data:`MAX_STRETCH`, a non-empty validity box holding the
+        centre, and accuracies of at most :data:`MAX_ERROR_M` metres. Every model
+        (:class:`~geoblock_rpc.model.RpcModel`) and every reader calls it.
+
+        Raises
+        ------
+        ModelFormatError
+            The first implausible field, with its value and the accepted range.
+        """
+        for name, (lo, hi, unit) in LIMITS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if name.endswith("_scale"):
+                if not lo <= abs(value) <= hi:
+                    raise ModelFormatError(
+                        f"{self.source}: {GDAL_KEYS[name]} {value!r} is not a plausible scale: "
+                        f"its magnitude must be in [{lo:g}, {hi:g}] {unit}"
+                    )
+            elif not lo <= value <= hi:
+                raise ModelFormatError(
+                    f"{self.source}: {GDAL_KEYS[name]} {value!r} is outside the physically "
+                    f"possible range [{lo:g}, {hi:g}] {unit}"
+                )
+        for num, den in (("line_num", "line_den"), ("samp_num", "samp_den")):
+            d0 = abs(float(getattr(self, den)[0]))
+            for name in (num, den):
+                coef = getattr(self, name)
+                k = int(np.argmax(np.abs(coef)))
+                if abs(coef[k]) > MAX_COEFFICIENT * d0 or abs(coef[k]) > MAX_COEFFICIENT_ABS:
+                    raise ModelFormatError(
+                        f"{self.source}: {GDAL_KEYS[name]}_{k + 1} ({TERMS[k]}) {coef[k]!r} is "
+                        f"not a plausible coefficient: more than {MAX_COEFFICIENT:g} times the "
+                        f"constant term of {GDAL_KEYS[den]} ({float(getattr(self, den)[0])!r}) "
+                        f"or than {MAX_COEFFICIENT_ABS:g}"
+                    )
+        for num, den in (("line_num", "line_den"), ("samp_num", "samp_den")):
+            d0 = float(getattr(self, den)[0])
+            centre = float(getattr(self, num)[0]) / d0
+            if abs(centre) > MAX_CENTRE_OFFSET:
+                raise ModelFormatError(
+                    f"{self.source}: {GDAL_KEYS[num]}_1 / {GDAL_KEYS[den]}_1 = {centre:.6g}: the "
+                    f"ground centre (LAT_OFF, LONG_OFF, HEIGHT_OFF) projects more than "
+                    f"{MAX_CENTRE_OFFSET:g} scales from the image centre"
+                )
+        # the normalised ground -> image Jacobian at the centre: real RPCs map their ground box
+        # onto their image box (singular values 0.93 .. 225 on the shared data)
+        jac = np.array([[(num[k] - num[0] / den[0] * den[k]) / den[0] for k in (1, 2)]
+                        for num, den in ((self.line_num, self.line_den),
+                                         (self.samp_num, self.samp_den))])
+        sv = np.linalg.svd(jac, compute_uv=False)
+        if not (sv[0] <= MAX_STRETCH and sv[1] >= 1.0 / MAX_STRETCH):
+            raise ModelFormatError(
+                f"{self.source}: the coefficients map the ground box (LAT/LONG_OFF +/- "
+                f"LAT/LONG_SCALE) onto {sv[0]:.3g} x {sv[1]:.3g} times the image box (LINE/"
+                f"SAMP_OFF +/- LINE/SAMP_SCALE), not within 1/{MAX_STRETCH:g} .. "
+                f"{MAX_STRETCH:g}: LINE/SAMP_NUM_COEFF, _DEN_COEFF or the scales are wrong"
+            )
+        box = (self.min_long, self.max_long, self.min_lat, self.max_lat)
+        if self.has_validity_box:
+            if not (box[0] < box[1] <= box[0] + 360.0 and box[2] < box[3]):
+                raise ModelFormatError(f"{self.source}: the validity box MIN_LONG..MAX_LONG "
+                                       f"{box[0]!r}..{box[1]!r}, MIN_LAT..MAX_LAT {box[2]!r}.."
+                                       f"{box[3]!r} is empty or spans more than 360 degrees")
+            dlon = (self.long_off - box[0]) % 360.0
+            if not (dlon <= box[1] - box[0] and box[2] <= self.lat_off <= box[3]):
+                raise ModelFormatError(f"{self.source}: LONG_OFF, LAT_OFF {self.long_off!r}, "
+                                       f"{self.lat_off!r} lie outside the validity box "
+                                       f"MIN_LONG..MAX_LONG {box[0]!r}..{box[1]!r}, "
+                                       f"MIN_LAT..MAX_LAT {box[2]!r}..{box[3]!r}")
 
     # ------------------------------------------------------------------ conversions
     @property
