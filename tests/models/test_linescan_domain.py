@@ -64,3 +64,27 @@ def test_the_margin_scales_with_the_height_range(model):
     wide = model.replace(height_range=(-500.0, 30000.0))
     _, status = wide.backproject_with_status([400.0] * 2, [500.0] * 2, [60000.0, 61000.0])
     assert list(status) == [Status.CONVERGED, Status.OUT_OF_DOMAIN]
+
+
+def test_an_ephemeris_that_is_not_an_orbit_is_refused(tmp_path):
+    import json
+
+    import geoblock
+    from geoblock.errors import GeoblockError, ModelFormatError
+    from geoblock.models.linescan import Ephemeris, LinescanModel
+
+    t = np.array([0.0, 1.0, 2.0])
+    p = np.array([[7.0e6, 0, 0], [7.0e6, 7.5e3, 0], [7.0e6, 1.5e4, 0]])
+    v = np.array([[0, 7.5e3, 0]] * 3, dtype=float)
+    Ephemeris(t, p, v)  # a plausible low orbit
+    with pytest.raises(ModelFormatError, match="position_m.*sample 1.*not an orbit"):
+        Ephemeris(t, np.where(np.arange(3)[:, None] == 1, 1.0, p), v)
+    with pytest.raises(ModelFormatError, match="velocity_m_s.*speed"):
+        Ephemeris(t, p, v * 100)
+    # from geoblock's model JSON: the file is named
+    data = LinescanModel.example().to_dict()
+    data["ephemeris"]["position_m"] = (np.asarray(data["ephemeris"]["position_m"]) * 1e-3).tolist()
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(GeoblockError, match="bad.json.*not an orbit|not an orbit.*bad.json"):
+        geoblock.open_model(path)

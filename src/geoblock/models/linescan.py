@@ -228,6 +228,13 @@ def _increasing(t: np.ndarray, where: str) -> None:
                            f"time_s[{i}] = {t[i]!r})")
 
 
+#: distances of a platform from the Earth's centre accepted in an ephemeris, metres (from
+#: below the surface's highest point plus a low airborne platform to beyond geostationary)
+ORBIT_RADIUS_M = (6.35e6, 5.0e7)
+#: largest platform speed accepted in an ephemeris, metres per second (low orbits ~7.6 km/s)
+MAX_SPEED_M_S = 2.0e4
+
+
 def _segment(times: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Interval index i (clipped to the end intervals), fraction s and its width, for times t."""
     i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
@@ -265,6 +272,20 @@ class Ephemeris:
             if a.shape[0] != n:
                 raise _fail(f"Ephemeris.{name}", f"has {a.shape[0]} samples, time_s has {n}")
         _increasing(t, "Ephemeris.time_s")
+        radius = np.linalg.norm(p, axis=1)
+        bad = ~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1]))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise _fail("Ephemeris.position_m",
+                        f"sample {i} is {radius[i]:.6g} m from the Earth's centre: not an orbit "
+                        f"(expected {ORBIT_RADIUS_M[0]:g} to {ORBIT_RADIUS_M[1]:g} m)")
+        speed = np.linalg.norm(v, axis=1)
+        bad = ~(speed <= MAX_SPEED_M_S)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise _fail("Ephemeris.velocity_m_s",
+                        f"sample {i} has a speed of {speed[i]:.6g} m/s (more than "
+                        f"{MAX_SPEED_M_S:g} m/s: not an Earth-orbiting platform)")
         object.__setattr__(self, "time_s", t)
         object.__setattr__(self, "position_m", p)
         object.__setattr__(self, "velocity_m_s", v)
