@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import re
-import warnings
 from collections import Counter
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoblock.errors import GeoblockError
+from geoblock.testing.fuzz import read_mutant
 from geoblock.typing import Status
 
 #: format -> the text files of the shared data in that format (binary rasters are not fuzzed)
@@ -104,24 +104,10 @@ def test_mutated_rpc_files_read_or_raise_a_geoblock_error(fmt, data_dir, tmp_pat
         text, ops = _mutate(texts[source], data)
         mutant = work / source.name  # the same name: the sniffer uses it to break ties
         mutant.write_text(text, encoding="utf-8")
-        counts["tried"] += 1
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                model = plugin.geoblock_read_sensor_model(mutant, None, {})
-        except GeoblockError as exc:
-            assert str(mutant) in str(exc), f"{ops}: the message does not name the file: {exc}"
-            counts["clean errors"] += 1
-            return
-        except Exception as exc:  # noqa: BLE001 - the point of the test
-            raise AssertionError(
-                f"{source.name} mutated by {ops} raised {type(exc).__name__}: {exc}"
-            ) from exc
-        if model is None:
-            counts["not recognised (None)"] += 1
-        else:
+        model = read_mutant(lambda: plugin.geoblock_read_sensor_model(mutant, None, {}),
+                            mutant, f"{source.name} mutated by {ops}", counts)
+        if model is not None:
             assert isinstance(model, RpcModel)
-            counts["models"] += 1
             problem = implausibility(model)
             if problem is not None:
                 counts["implausible accepted"] += 1
