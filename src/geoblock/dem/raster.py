@@ -36,7 +36,6 @@ from __future__ import annotations
 import math
 import os
 import threading
-import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -50,6 +49,7 @@ from affine import Affine
 from geoblock import coords
 from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
+from geoblock._rasterio import open_quietly
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
@@ -245,8 +245,7 @@ class RasterDem(DemBase):
         band: int = 1,
         fill_distance: int = 100,
     ) -> None:
-        import rasterio
-        from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
+        from rasterio.errors import RasterioIOError
 
         self._path = str(path) if str(path).startswith(("/vsi", "http")) else str(
             Path(path).expanduser().resolve())
@@ -271,9 +270,7 @@ class RasterDem(DemBase):
         self._band = int(band)
         self._fill_distance = int(fill_distance)
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", NotGeoreferencedWarning)  # refused below
-                ds = rasterio.open(self._path)
+            ds = open_quietly(self._path)  # no georeferencing is refused below
             with ds:
                 if not 1 <= self._band <= ds.count:
                     raise DemError(f"DEM {self._path}: band {band} does not exist "

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import os
-import threading
 import uuid
 import warnings
 from collections import deque
@@ -24,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from geoblock._rasterio import open_quietly
 from geoblock.errors import EmptyOutputError, EmptyOutputWarning, GeoblockIOError
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
@@ -33,19 +33,15 @@ __all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
 PathLike = str | os.PathLike[str]
 
 
-_open_lock = threading.Lock()
 
 
 def ds_open(name: str) -> Any:
     """``rasterio.open(name)`` without the ``NotGeoreferencedWarning`` of raw images.
 
-    ``warnings.catch_warnings`` is not thread-safe: opens are serialised (reads are not).
+    Serialised with every other quiet open (:func:`geoblock._rasterio.open_quietly`):
+    ``warnings.catch_warnings`` is not thread-safe.
     """
-    import rasterio
-
-    with _open_lock, warnings.catch_warnings():  # raw images have no geotransform: expected
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        return rasterio.open(name)
+    return open_quietly(name)
 
 
 @dataclass(frozen=True)
@@ -571,7 +567,6 @@ def write_image(
     GeoblockIOError
         The directory does not exist or GDAL cannot write.
     """
-    import rasterio
 
     path = Path(path)
     data = np.asarray(array)
@@ -591,9 +586,8 @@ def write_image(
         profile["compress"] = compress
     if nodata is not None:
         profile["nodata"] = nodata
-    with atomic_path(path) as tmp, warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(tmp, "w", **profile) as dst:
+    with atomic_path(path) as tmp:
+        with open_quietly(tmp, "w", **profile) as dst:
             dst.write(data)
             if tags:
                 dst.update_tags(**{str(k): str(v) for k, v in tags.items()})
