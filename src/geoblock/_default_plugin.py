@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from geoblock.errors import ModelFormatError, SerializationError, UnknownModelError
+from geoblock.errors import GeoblockError, ModelFormatError, UnknownModelError
 from geoblock.hookspecs import hookimpl
 from geoblock.models.corrections import ImageCorrection
 
@@ -52,10 +52,12 @@ def geoblock_read_sensor_model(path, model_name, options):
 
     try:
         return from_dict(data)
-    except SerializationError as exc:
-        raise ModelFormatError(f"{path}: {exc}") from exc
     except UnknownModelError as exc:  # the model (or a wrapped one) is not registered
         raise UnknownModelError(f"{path}: {exc}") from exc
+    except GeoblockError as exc:  # any model's refusal of its fields: name the file
+        if str(path) in str(exc):
+            raise
+        raise ModelFormatError(f"{path}: {exc}") from exc
 
 
 @hookimpl(trylast=True)

@@ -61,10 +61,6 @@ class GeoblockPluginManager(pluggy.PluginManager):
         #: plugin name -> (distribution, version)
         self.distributions: dict[str, tuple[str | None, str | None]] = {}
 
-    def call_firstresult(self, hook_name: str, **kwargs: Any) -> tuple[Any, list[HookFailure]]:
-        """:func:`call_firstresult` on this manager."""
-        return call_firstresult(self, hook_name, **kwargs)
-
 
 @dataclass(frozen=True)
 class HookFailure:

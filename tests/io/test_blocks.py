@@ -164,3 +164,15 @@ def test_dumps_toml_non_finite_floats():
     back = tomllib.loads(dumps_toml({"a": math.inf, "b": -math.inf, "c": math.nan, "d": 1e300}))
     assert back["a"] == math.inf and back["b"] == -math.inf and math.isnan(back["c"])
     assert back["d"] == 1e300
+
+
+def test_block_file_options_are_the_engines_keywords():
+    """[options] keys are adjust()'s keywords (sigma_px aside, a reading option): the table
+    cannot drift from the engine's signature."""
+    import inspect
+
+    from geoblock.adjust import adjust
+    from geoblock.io.blocks import ADJUST_OPTIONS
+
+    keywords = set(inspect.signature(adjust).parameters) - {"block", "progress", "mode"}
+    assert set(ADJUST_OPTIONS) - {"sigma_px"} == keywords

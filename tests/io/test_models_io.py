@@ -98,3 +98,22 @@ def test_not_json_safe_model_is_refused(tmp_path):
     geoblock.write_model(model, tmp_path / "ok.json")
     assert isinstance(geoblock.open_model(tmp_path / "ok.json"), ConstantVelocityPushbroom)
     assert AffineCamera.example() != model
+
+
+def test_a_model_json_refused_by_its_model_names_the_file(tmp_path):
+    """Any model's refusal of its fields (here a collocation with two coincident control
+    points) comes out of open_model naming the file."""
+    import json
+
+    import geoblock
+    from geoblock.adjust.collocation import CollocationCorrection
+    from geoblock.errors import ModelFormatError
+
+    data = CollocationCorrection.example().to_dict()
+    col = data["collocation"]
+    for key in ("row", "col"):
+        col[key][1] = col[key][0]
+    path = tmp_path / "bad-collocation.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ModelFormatError, match="bad-collocation.json"):
+        geoblock.open_model(path)

@@ -420,11 +420,9 @@ def _local_to_enu_rotation(frame: coords.LocalFrame, lon, lat) -> np.ndarray:
 
 
 def _dem_height(dem: Any, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
-    if hasattr(dem, "height_with_status"):
-        h, status = dem.height_with_status(lon, lat)
-        h = np.where(status == Status.CONVERGED, h, np.nan)
-        return np.asarray(h, dtype=np.float64)
-    return np.asarray(dem.height(lon, lat), dtype=np.float64)
+    """DEM heights above the ellipsoid, metres; NaN where the DEM has none."""
+    h, status = dem.height_with_status(lon, lat)
+    return np.where(status == Status.CONVERGED, np.asarray(h, dtype=np.float64), np.nan)
 
 
 def _names(ids: np.ndarray, limit: int = 8) -> str:
@@ -676,9 +674,13 @@ class _Engine:
                 a[mine, :, : s.adj[i].size] = model.partials_parameters(lon, lat, h)[
                     ..., s.adj[i]]
             b[mine] = model.partials_ground(lon, lat, h) @ rot_t
-        w = np.sqrt(np.where(ev["ok"], self.weight, 0.0))[:, None] / s.sigma  # (M, 2)
-        a = np.nan_to_num(a * w[:, :, None])
-        b = np.nan_to_num(b * w[:, :, None])
+        ok = ev["ok"][:, None, None]
+        # whitened by the a-priori sigmas (kept for the statistics), then by the robust weights
+        a = np.where(ok, np.nan_to_num(a / s.sigma[:, :, None]), 0.0)
+        b = np.where(ok, np.nan_to_num(b / s.sigma[:, :, None]), 0.0)
+        self.prior_whitened = (a, b)
+        w = np.sqrt(self.weight)[:, None, None]
+        a, b = a * w, b * w
         vw = ev["vw"] * np.sqrt(self.weight)[:, None]
         dem = ev["dem"]
         has = np.isfinite(dem["misclosure"])
@@ -865,14 +867,8 @@ class _Engine:
         q_xx, q_px = system.point_cofactors(q_pp)
         s = self.s
         w = np.where(ev["ok"], self.weight, 0.0)
-        h_w = system.hat_blocks(q_pp, q_xx, q_px)  # with robust weights (whitened by sqrt w)
-        # D = J Q J^T / sigma^2 (a-priori whitening): H_w = sqrt(w) D sqrt(w)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d = h_w / np.where(w > 0, w, 1.0)[:, None, None]
-            # measurements with w == 0 contribute nothing: their D needs the unweighted J
-        zero = w == 0
-        if zero.any():
-            d[zero] = self._d_unweighted(ev, system, q_pp, q_xx, q_px, np.flatnonzero(zero))
+        # D = J Q J^T / sigma^2 (a-priori whitening), every measurement, rejected ones too
+        d = system.hat_blocks(q_pp, q_xx, q_px, *self.prior_whitened)
         eye = np.eye(2)
         i_wd = eye - w[:, None, None] * d
         u = np.where(ev["ok"][:, None], ev["v"] / s.sigma, np.nan)  # a-priori whitened
@@ -884,34 +880,6 @@ class _Engine:
         redundancy = np.einsum("mii->mi", i_wd)
         return {"q_pp": q_pp, "q_xx": q_xx, "q_px": q_px, "test": test,
                 "redundancy": redundancy}
-
-    def _d_unweighted(self, ev, system, q_pp, q_xx, q_px, idx):
-        """``J Q J^T / sigma^2`` for measurements whose weight is 0 (their whitened rows
-        in ``system`` are zero): the partials are recomputed."""
-        s = self.s
-        out = np.zeros((idx.size, 2, 2))
-        rot_t = s.frame.rotation.T
-        kmax = s.gidx.shape[1]
-        for i, model in enumerate(ev["models"]):
-            sub = np.flatnonzero(s.image_of[idx] == i)
-            if sub.size == 0:
-                continue
-            m = idx[sub]
-            j = s.point_of[m]
-            lon, lat, h = ev["lon"][j], ev["lat"][j], ev["h"][j]
-            a = np.zeros((m.size, 2, kmax))
-            if s.adj[i].size:
-                a[:, :, : s.adj[i].size] = model.partials_parameters(lon, lat, h)[..., s.adj[i]]
-            b = model.partials_ground(lon, lat, h) @ rot_t
-            a = np.nan_to_num(a / s.sigma[m][:, :, None])
-            b = np.nan_to_num(b / s.sigma[m][:, :, None])
-            g = s.gidx[i]
-            q_ii = np.where((g >= 0)[:, None] & (g >= 0)[None, :],
-                            q_pp[np.maximum(g, 0)][:, np.maximum(g, 0)], 0.0)
-            cross = a @ q_px[m] @ np.swapaxes(b, 1, 2)
-            out[sub] = (a @ q_ii @ np.swapaxes(a, 1, 2) + cross + np.swapaxes(cross, 1, 2)
-                        + b @ q_xx[j] @ np.swapaxes(b, 1, 2))
-        return out
 
     def _reweight(self, ev, system, robust: str, k: float, threshold: float) -> bool:
         """Update the robust weights; True if they changed enough to iterate again."""

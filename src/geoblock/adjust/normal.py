@@ -326,18 +326,23 @@ class NormalSystem:
         q_xx = self.c + self.c @ inner @ self.c
         return q_xx, q_px
 
-    def hat_blocks(self, q_pp: np.ndarray, q_xx: np.ndarray, q_px: np.ndarray) -> np.ndarray:
-        """(M, 2, 2) ``W^(1/2) J Q J^T W^(1/2)`` of every measurement."""
+    def hat_blocks(self, q_pp: np.ndarray, q_xx: np.ndarray, q_px: np.ndarray,
+                   a: np.ndarray | None = None, b: np.ndarray | None = None) -> np.ndarray:
+        """(M, 2, 2) ``W^(1/2) J Q J^T W^(1/2)`` of every measurement.
+
+        ``a`` (M, 2, Kmax) and ``b`` (M, 2, 3) replace the system's whitened partials (e.g.
+        partials whitened by the a-priori sigmas alone, without robust weights)."""
+        a = self.a if a is None else np.ascontiguousarray(a, dtype=np.float64)
+        b = self.b if b is None else np.ascontiguousarray(b, dtype=np.float64)
         if self._numba:
-            out = np.empty((self.a.shape[0], 2, 2))
+            out = np.empty((a.shape[0], 2, 2))
             _nb_hat_blocks(np.ascontiguousarray(q_pp, dtype=np.float64),
                            np.ascontiguousarray(q_xx, dtype=np.float64),
-                           np.ascontiguousarray(q_px, dtype=np.float64), self.a, self.b,
+                           np.ascontiguousarray(q_px, dtype=np.float64), a, b,
                            self.gidx, self.image_of, self.point_of, out)
             return out
         g = self.gidx[self.image_of]
         q_ii = _gather(q_pp, g, g)
-        a, b = self.a, self.b
         at = np.swapaxes(a, 1, 2)
         bt = np.swapaxes(b, 1, 2)
         cross = a @ q_px @ bt

@@ -22,6 +22,7 @@ import numpy as np
 
 from geoblock.adjust.block import BlockResult
 from geoblock.adjust.statistics import AccuracyStats
+from geoblock.report.tables import stats_table
 
 __all__ = ["report_markdown", "result_dict", "write_result"]
 
@@ -89,12 +90,7 @@ def _statistics(result: BlockResult) -> dict[str, Any]:
 
 
 def _table(rows: Mapping[str, AccuracyStats], label: str) -> list[str]:
-    lines = [f"| {label} | n | RMSE E (m) | RMSE N (m) | RMSE 2D (m) | mean E (m) | mean N (m) "
-             "| max 2D (m) |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
-    for key, st in rows.items():
-        lines.append(f"| {key} | {st.n} | {st.rmse_e:.2f} | {st.rmse_n:.2f} | {st.rmse_2d:.2f} "
-                     f"| {st.mean_e:.2f} | {st.mean_n:.2f} | {st.max_2d:.2f} |")
-    return lines
+    return stats_table(rows, labels=(label,)).rstrip("\n").splitlines()
 
 
 def report_markdown(result: BlockResult, single: BlockResult | None = None, *,

@@ -66,13 +66,10 @@ def _read_block_points(ground_path: str, image_path: str, image_id: str | None,
                        sigma_px: float):
     """GCPs and ICPs of one image from a ground CSV and an image CSV (``geoblock simulate``'s
     ``points/ground.csv`` and ``points/image.csv``, a block's point files)."""
-    from geoblock.adjust import GroundPoints, ImagePoints
     from geoblock.errors import ObservationError
-    from geoblock.io import read_points
+    from geoblock.io.points import read_observations
 
-    ground = GroundPoints.from_columns(read_points(ground_path), source=ground_path)
-    images = ImagePoints.from_columns(read_points(image_path), source=image_path,
-                                      sigma=sigma_px)
+    ground, images = read_observations(ground_path, image_path, sigma_px=sigma_px)
     present = sorted(set(images.image.tolist()))
     if not present:
         raise ObservationError(f"{image_path}: no image measurements")

@@ -9,6 +9,7 @@ from geoblock.io.blocks import (
     read_block,
     write_block,
 )
+from geoblock._rasterio import open_quietly
 from geoblock.io.dem import open_dem, write_dem
 from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
 from geoblock.io.models import open_model, write_model
@@ -24,6 +25,7 @@ __all__ = [
     "open_dem",
     "open_image",
     "open_model",
+    "open_quietly",
     "read_block",
     "read_points",
     "write_block",

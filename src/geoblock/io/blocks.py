@@ -595,11 +595,10 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     """
     from geoblock.adjust.block import Block as AdjustBlock
     from geoblock.adjust.methods import METHODS, prepare_model
-    from geoblock.adjust.observations import GroundPoints, ImagePoints
     from geoblock.errors import AdjustmentError
     from geoblock.io.dem import open_dem
     from geoblock.io.models import open_model
-    from geoblock.io.points import read_points
+    from geoblock.io.points import PointFileError, read_observations
 
     spec = path if isinstance(path, Block) else read_block(path)
     name = "<block>" if isinstance(path, Block) else str(path)
@@ -610,7 +609,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     options: dict[str, Any] = {"mode": spec.mode}
     if method["collocation"]:
         options["collocation"] = True
-    sigma_px = 0.5
+    reading: dict[str, float] = {}  # sigma_px: read_observations' default unless given
     for key, value in spec.options.items():
         where = f"{name}: options.{key}"
         if key not in ADJUST_OPTIONS:
@@ -620,7 +619,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
             raise BlockFileError(f"{where} must be a {' or '.join(k.__name__ for k in kinds)}, "
                                  f"got {value!r}")
         if key == "sigma_px":
-            sigma_px = float(value)
+            reading["sigma_px"] = float(value)
             continue
         if key == "collocation" and isinstance(value, Mapping):
             unknown = sorted(set(value) - set(_COLLOCATION_KEYS))
@@ -632,13 +631,9 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     if spec.image_points is None:
         raise BlockFileError(f"{name}: 'points.image' (the image measurements) is required")
     try:
-        measurements = ImagePoints.from_columns(
-            read_points(spec.image_points, required=("row", "col")),
-            source=str(spec.image_points), sigma=sigma_px)
-        ground = None if spec.ground_points is None else GroundPoints.from_columns(
-            read_points(spec.ground_points, required=("lon", "lat", "h")),
-            source=str(spec.ground_points))
-    except AdjustmentError as exc:
+        ground, measurements = read_observations(spec.ground_points, spec.image_points,
+                                                 **reading)
+    except PointFileError as exc:
         raise BlockFileError(str(exc)) from None
     models = {}
     for k, im in enumerate(spec.images):
@@ -653,15 +648,16 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
         except AdjustmentError as exc:
             raise BlockFileError(str(exc)) from None
     dem = None
-    dem_sigma = 5.0
+    extra: dict[str, Any] = {}  # the Block's default DEM sigma unless the file gives one
     if spec.dem is not None:
         dem = open_dem(spec.dem.source, vertical=spec.dem.vertical,
                        **({} if spec.dem.geoid is None else {"geoid": spec.dem.geoid}))
         if spec.dem.sigma is not None:
-            dem_sigma = spec.dem.sigma
+            extra["dem_sigma_m"] = spec.dem.sigma
     try:
-        block = AdjustBlock(models, measurements, ground, dem, dem_sigma,
-                            {im.id: dict(im.sigmas) for im in spec.images if im.sigmas})
+        block = AdjustBlock(models, measurements, ground, dem,
+                            sigmas={im.id: dict(im.sigmas) for im in spec.images if im.sigmas},
+                            **extra)
     except AdjustmentError as exc:
         raise BlockFileError(f"{name}: {exc}") from None
     return OpenedBlock(spec, block, options)

@@ -14,13 +14,16 @@ import os
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
 from geoblock.errors import GeoblockIOError, ModelFormatError
 
-__all__ = ["PointFileError", "read_points", "write_points"]
+if TYPE_CHECKING:
+    from geoblock.adjust.observations import GroundPoints, ImagePoints
+
+__all__ = ["PointFileError", "read_observations", "read_points", "write_points"]
 
 NUMERIC_COLUMNS = frozenset(
     {"lon", "lat", "h", "row", "col", "x", "y", "z", "sigma", "sigma_row", "sigma_col",
@@ -170,3 +173,42 @@ def write_points(
             raise GeoblockIOError(
                 f"cannot write point file {str(target)!r}: {exc.strerror}"
             ) from exc
+
+
+def read_observations(
+    ground: str | os.PathLike[str] | None,
+    image: str | os.PathLike[str],
+    *,
+    sigma_px: float = 0.5,
+) -> tuple[GroundPoints | None, ImagePoints]:
+    """Read a block's two point files into the adjustment's tables.
+
+    Parameters
+    ----------
+    ground : path or None
+        Ground CSV: ``id, lon, lat, h[, sigma_e, sigma_n, sigma_h][, kind]`` (kind gcp|icp).
+    image : path
+        Image-measurement CSV: ``id, image, row, col[, sigma | sigma_row, sigma_col][, kind]``.
+    sigma_px : float
+        Measurement sigma (pixels) of rows without one.
+
+    Returns
+    -------
+    (GroundPoints or None, ImagePoints)
+
+    Raises
+    ------
+    PointFileError
+        A file is malformed or a table refuses its values (the message names the file).
+    """
+    from geoblock.adjust.observations import GroundPoints, ImagePoints
+    from geoblock.errors import ObservationError
+
+    try:
+        measurements = ImagePoints.from_columns(read_points(image, required=("row", "col")),
+                                                source=str(image), sigma=sigma_px)
+        points = None if ground is None else GroundPoints.from_columns(
+            read_points(ground, required=("lon", "lat", "h")), source=str(ground))
+    except ObservationError as exc:
+        raise PointFileError(str(exc)) from None
+    return points, measurements

@@ -1033,15 +1033,6 @@ _UNKNOWN_SET = "no-such-parameter-set"
 _UNKNOWN_OPTION = "no_such_option"
 
 
-def _same_parameters(a: Any, b: Any) -> bool:
-    """Whether two ParameterSets agree in names, units, values, sigmas, mask and covariance."""
-    for attr in ("names", "units", "values", "sigmas", "adjustable", "covariance"):
-        x, y = getattr(a, attr, None), getattr(b, attr, None)
-        if not np.array_equal(np.asarray(x, dtype=object), np.asarray(y, dtype=object)):
-            return False
-    return True
-
-
 def check_parameter_sets(
     model: Any,
     *,
@@ -1136,7 +1127,7 @@ def check_parameter_sets(
                          expected=repr(model.shape), got=repr(preset.shape))
         _check_parameter_set(check, model, preset.parameters, f"{call}.parameters")
         if name == "default" and not (
-            _equal(preset, model) and _same_parameters(preset.parameters, model.parameters)
+            _equal(preset, model) and _equal(preset.parameters, model.parameters)
         ):
             raise _error(check, model, f"{call} is not the model as it is",
                          expected=repr(model.parameters), got=repr(preset.parameters),
@@ -1167,7 +1158,7 @@ def check_parameter_sets(
             again = _call(check, model, f"from_dict({call}.to_dict())",
                           type(preset).from_dict, json.loads(text))
             if not (_equal(again, preset)
-                    and _same_parameters(again.parameters, preset.parameters)):
+                    and _equal(again.parameters, preset.parameters)):
                 raise _error(check, model, f"from_dict({call}.to_dict()) does not give the "
                              "preset back", expected=repr(preset.parameters),
                              got=repr(again.parameters),

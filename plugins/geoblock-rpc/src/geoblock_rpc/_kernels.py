@@ -149,8 +149,8 @@ def _project_one(x, y, z, prm, coef):  # pragma: no cover - numba
     """One point of :func:`project`: (row, col, status)."""
     if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
         return np.nan, np.nan, INVALID_INPUT
-    if _off_earth(x, y):  # before wrapping: 1e300 modulo 360 is some longitude
-        return np.nan, np.nan, OUT_OF_DOMAIN
+    # the wrapped longitude only enters L: _outside tests the raw one (1e300 modulo 360 is
+    # some longitude)
     L = _wrap_dlon(x, prm[LONG_OFF]) / prm[LONG_SCALE]
     P = (y - prm[LAT_OFF]) / prm[LAT_SCALE]
     H = (z - prm[HEIGHT_OFF]) / prm[HEIGHT_SCALE]
