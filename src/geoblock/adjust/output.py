@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -219,8 +217,8 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
     """Write ``models/<image>.json``, ``report.json``, ``report.md`` and the PNG figures.
 
     The files are written into a temporary directory beside ``out_dir`` and moved into place
-    at the end (an existing ``out_dir`` is replaced as a whole), so an error leaves
-    ``out_dir`` as it was.
+    at the end (an existing ``out_dir`` is replaced as a whole,
+    :func:`geoblock.io._atomic.atomic_directory`), so an error leaves ``out_dir`` as it was.
 
     Returns
     -------
@@ -228,13 +226,12 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
         What was written, by name.
     """
     from geoblock.io import write_model
+    from geoblock.io._atomic import atomic_directory
 
     out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    written: dict[str, Path] = {}
+    with atomic_directory(out, "adjustment output ") as tmp:
         (tmp / "models").mkdir()
-        written: dict[str, Path] = {}
         for image, model in result.models.items():
             write_model(model, tmp / "models" / f"{image}.json")
             written[f"model:{image}"] = out / "models" / f"{image}.json"
@@ -248,15 +245,4 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
         (tmp / "report.md").write_text(report_markdown(result, single, title=title,
                                                        figures=figs), encoding="utf-8")
         written["report.md"] = out / "report.md"
-        os.chmod(tmp, 0o755)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
-            os.replace(out, old / out.name)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return written

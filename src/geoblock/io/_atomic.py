@@ -21,7 +21,8 @@ from pathlib import Path
 
 from geoblock.errors import GeoblockIOError
 
-__all__ = ["atomic_path", "remove_stale_temporaries", "temporary_name_pattern"]
+__all__ = ["atomic_directory", "atomic_path", "remove_stale_temporaries",
+           "temporary_name_pattern"]
 
 #: A temporary not modified for this many seconds, and held open by no process of this host
 #: that the user can inspect (``/proc``), is stale.
@@ -171,3 +172,46 @@ def atomic_path(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
         raise GeoblockIOError(f"cannot write {what}{path}: {exc}") from exc
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
+    """A temporary directory beside ``path``, put in the place of ``path`` (a directory,
+    replaced as a whole) when the block succeeds; on failure ``path`` stays as it was and the
+    temporary is removed.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The final directory (its parent is created if needed).
+    what : str
+        What is written, for the error message (``"adjustment output "``).
+
+    Raises
+    ------
+    GeoblockIOError
+        ``path`` exists and is not a directory, or a rename fails (names the path).
+    """
+    import shutil
+    import tempfile
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise GeoblockIOError(f"cannot write {what}{path}: it exists and is not a directory")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmpdir", dir=path.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o755)
+        if path.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old",
+                                        dir=path.parent))
+            os.replace(path, old / path.name)
+            os.replace(tmp, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, path)
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot write {what}{path}: {exc}") from exc
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
