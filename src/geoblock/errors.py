@@ -11,6 +11,7 @@ from __future__ import annotations
 __all__ = [
     "AdjustmentError",
     "ConvergenceWarning",
+    "CropError",
     "DemCoverageError",
     "DemError",
     "DuplicateModelError",
@@ -61,6 +62,11 @@ class DuplicateModelError(PluginError, ValueError):
 
 class ShapeMismatchError(GeoblockError, ValueError):
     """Coordinate arrays do not broadcast together (the message names them and their shapes)."""
+
+
+class CropError(GeoblockError, ValueError):
+    """An image and a model do not fit: shapes differ with no crop offset, or the crop does not
+    lie inside the model's scene (the message gives both shapes and what to pass)."""
 
 
 class UnknownModelError(GeoblockError, KeyError):

@@ -55,3 +55,27 @@ def test_localize_stdin_ray_tracing_and_warning(runner, cli, model_path, tmp_pat
 def test_localize_needs_dem(runner, cli, model_path):
     result = runner.invoke(cli, ["localize", model_path], input="row,col\n1,2\n")
     assert result.exit_code == 2 and "--dem" in result.output
+
+
+def test_localize_crop_offset_without_image(runner, cli, model_path, affine, tmp_path):
+    """--crop-offset alone shifts the points into the scene; outside the scene it is refused;
+    --no-crop needs --image."""
+    points = tmp_path / "image.csv"
+    points.write_text("row,col\n10.5,20.25\n")
+    out = tmp_path / "ground.csv"
+    args = ["localize", model_path, str(points), "--dem", "const:250", "-o", str(out)]
+    result = runner.invoke(cli, [*args, "--crop-offset", "100", "200"])
+    assert result.exit_code == 0, result.output
+    row = _read_csv(out.read_text())[0]
+    (r, c), _ = affine.project_with_status(float(row["lon"]), float(row["lat"]), 250.0)
+    np.testing.assert_allclose([r, c], [110.5, 220.25], atol=1e-6)
+    rows, cols = affine.shape
+    for offset in (["1e300", "0"], ["0", str(cols)], ["-5", "0"]):
+        result = runner.invoke(cli, [*args, "--crop-offset", *offset])
+        assert result.exit_code == 1, result.output
+        assert "does not lie inside" in result.output and "--crop-offset" in result.output
+        assert "Traceback" not in result.output
+    result = runner.invoke(cli, [*args, "--no-crop"])
+    assert result.exit_code == 2 and "--no-crop needs --image" in result.output, result.output
+    result = runner.invoke(cli, [*args, "--no-crop", "--crop-offset", "1", "2"])
+    assert result.exit_code == 2, result.output

@@ -186,3 +186,63 @@ def test_orthorectify_places_a_crop_with_the_scene_model(tmp_path):
     plain = _raster(tmp_path / "plain.tif", shape=(60, 80))
     with pytest.raises(CropError, match="60 x 80|60, 80"):
         geoblock.orthorectify(plain, scene, geoblock.open_dem("const:250"))
+
+
+# ---------------------------------------------------------------------- review fixes
+def test_crop_outside_its_scene_is_refused_on_construction_and_load(scene):
+    with pytest.raises(CropError, match="does not lie inside the model's 1000 x 1200 px scene"):
+        CroppedModel(scene, (1e300, 0), (3, 4))
+    with pytest.raises(CropError, match="does not lie inside"):
+        CroppedModel(CroppedModel(scene, (100, 200), (50, 60)), (10, 20), (50, 60))
+    data = CroppedModel(scene, (1, 2), (3, 4)).to_dict()
+    data["offset"] = [1e300, 0.0]
+    with pytest.raises(SerializationError, match="does not lie inside"):
+        CroppedModel.from_dict(data)
+
+
+@pytest.mark.parametrize("shape", [(v for v in (3.5, 4)), (True, True), (3, 4, 5), "34"])
+def test_crop_shape_is_read_once_and_strictly(scene, shape):
+    with pytest.raises(CropError, match="CroppedModel"):
+        CroppedModel(scene, (0, 0), shape)
+    assert CroppedModel(scene, (0, 0), (v for v in (3, 4))).shape == (3, 4)
+
+
+def test_image_shape_helper():
+    from geoblock.errors import ModelFormatError
+    from geoblock.models import image_shape
+
+    assert image_shape((v for v in ("2920.0", np.int64(4))), "f") == (2920, 4)
+    for bad in [(v for v in (3.5, 4)), (True, 2), (np.bool_(True), 2), (0, 2), (2, np.nan),
+                (10**7 + 1, 2), (1e300, 2), "ab", 12, (1,), (" ", 2)]:
+        with pytest.raises(ModelFormatError, match="^somewhere: image"):
+            image_shape(bad, "somewhere")
+    assert image_shape((5, 6), "f", maximum=6) == (5, 6)
+    with pytest.raises(ModelFormatError, match="cols 7"):
+        image_shape((5, 7), "f", maximum=6)
+
+
+def test_crop_has_one_delegation_path(scene):
+    crop = CroppedModel(scene, (100.0, 200.5), (300, 400))
+    assert "project_with_status" not in vars(CroppedModel)
+    assert "backproject_with_status" not in vars(CroppedModel)
+    rows = np.array([[0.0, np.nan], [10.0, 299.0]])
+    cols = np.array([[0.0, 5.0], [np.inf, 399.0]])
+    (lon, lat, h), status = crop.backproject_with_status(rows, cols, 100.0)
+    (lon_s, lat_s, h_s), status_s = scene.backproject_with_status(rows + 100.0, cols + 200.5,
+                                                                  100.0)
+    np.testing.assert_array_equal(status, status_s)
+    np.testing.assert_array_equal(np.stack([lon, lat, h]), np.stack([lon_s, lat_s, h_s]))
+    (r, c), status = crop.project_with_status(lon, lat, h)
+    (r_s, c_s), status_s = scene.project_with_status(lon, lat, h)
+    np.testing.assert_array_equal(status, status_s)
+    np.testing.assert_array_equal(np.stack([r, c]), np.stack([r_s - 100.0, c_s - 200.5]))
+    assert crop.parameter_sets == tuple(scene.parameter_sets)
+
+
+def test_crop_names_are_public():
+    import geoblock.errors
+    import geoblock.models
+
+    assert geoblock.models.CroppedModel is CroppedModel
+    assert geoblock.models.model_for_image is model_for_image
+    assert geoblock.errors.CropError is CropError

@@ -308,3 +308,29 @@ def test_crop_refusals(data_dir):
         _open(data_dir, NICE_SOURCES[2], crop_from_geotransform=True)
     with pytest.raises(TypeError, match="unknown RPC reader option"):
         _open(data_dir, VENTOUX_GEOM, crop=(1, 2))
+
+
+def test_crop_from_geotransform_of_written_gtiffs(tmp_path):
+    """Core's open_image gives the crop offset; the identity geotransform (no offset for the
+    core) stays the plugin's crop at (0, 0); a map geotransform is refused."""
+    import warnings as _warnings
+
+    from affine import Affine
+    from geoblock_rpc import readers
+    from geoblock_rpc.writers import write_gtiff
+
+    assert "ReaderOptionError" in readers.__all__
+    model = RpcModel.example()
+    path = write_gtiff(model, tmp_path / "scene.tif")
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error")  # quiet opens: no NotGeoreferencedWarning
+        rpc, shape, extra = read_rpc(path, crop_from_geotransform=True)
+    assert extra["crop_offset"] == (0.0, 0.0) and rpc == read_rpc(path)[0]
+    with rasterio.open(path, "r+") as ds:
+        ds.transform = Affine(1, 0, 200, 0, 1, 100)
+    rpc, shape, extra = read_rpc(path, crop_from_geotransform=True)
+    assert extra["crop_offset"] == (100.0, 200.0) and shape == model.shape
+    with rasterio.open(path, "r+") as ds:
+        ds.transform = Affine(0.5, 0, 200, 0, -0.5, 100)
+    with pytest.raises(ModelFormatError, match="pixel-unit geotransform"):
+        read_rpc(path, crop_from_geotransform=True)

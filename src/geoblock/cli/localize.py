@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import click
 
 from geoblock._array import warn_status
@@ -27,6 +29,27 @@ def _nodata(value: str) -> str | float:
         return float(value)
     except ValueError:
         return value
+
+
+def _crop_to_scene_edge(model, crop_offset: tuple[float, float]):
+    """The crop of ``model``'s scene at ``--crop-offset`` with no raster to give its shape: it
+    reaches to the scene's far edge. An offset outside the scene is refused (CropError)."""
+    from geoblock.errors import CropError
+    from geoblock.models.crop import FIT_TOLERANCE_PX, CroppedModel
+
+    rows, cols = (int(v) for v in model.shape)
+    row0, col0 = (float(v) for v in crop_offset)
+    # to the far edge (as far as the crop may stick out of it, for fractional offsets)
+    shape = tuple(max(1, min(n - int(o), math.floor(n + FIT_TOLERANCE_PX - o)))
+                  for n, o in ((rows, row0), (cols, col0)))
+    try:
+        return CroppedModel(model, (row0, col0), shape)
+    except CropError as exc:
+        raise CropError(
+            f"--crop-offset {row0:g} {col0:g} does not lie inside the model's {rows} x {cols} "
+            f"px scene ({model.name!r}): the crop's first pixel must be a scene pixel, row "
+            f"0..{rows - 1} and col 0..{cols - 1}"
+        ) from exc
 
 
 @click.command(short_help="Image points (row, col) -> ground (lon, lat, h) on a DEM.")
@@ -81,17 +104,14 @@ def localize(model_path, points, dem_source, vertical, geoid, nodata, interpolat
     from geoblock.dem.intersect import localize as _localize
     from geoblock.io import open_dem, read_points, write_points
 
-    if no_crop and crop_offset:
-        raise click.UsageError("give --crop-offset or --no-crop, not both")
+    if no_crop and image is None:
+        raise click.UsageError("--no-crop needs --image IMAGE (it says to take IMAGE's pixels "
+                               "as MODEL's); without --image the points are MODEL's pixels")
     model = open_model_arg(model_path, model_name)
-    if image is not None:
+    if image is not None:  # also refuses --crop-offset with --no-crop
         model = model_for_image_arg(model, image, crop_offset, no_crop)
-    elif crop_offset:  # no raster: the crop reaches to the scene's far edge
-        from geoblock.models.crop import CroppedModel
-
-        rows, cols = model.shape
-        shape = (max(1, rows - int(crop_offset[0])), max(1, cols - int(crop_offset[1])))
-        model = CroppedModel(model, crop_offset, shape)
+    elif crop_offset:
+        model = _crop_to_scene_edge(model, crop_offset)
     dem = open_dem(dem_source, vertical=vertical, geoid=geoid, nodata=_nodata(nodata),
                    interpolation=interpolation)
     table = read_points(points_source(points), required=("row", "col"))

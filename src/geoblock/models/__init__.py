@@ -1,12 +1,15 @@
-"""Sensor models: the protocol, the implementers' base class, parameters, registry, corrections."""
+"""Sensor models: the protocol, the implementers' base class, parameters, registry, corrections,
+crops."""
 
-from geoblock.models.base import SensorModelBase
+from geoblock.models.base import SensorModelBase, image_shape
 from geoblock.models.corrections import ImageCorrection
+from geoblock.models.crop import CroppedModel, model_for_image
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.models.registry import ModelRegistry, from_dict, get_registry
 
 __all__ = [
+    "CroppedModel",
     "ImageCorrection",
     "ModelRegistry",
     "ParameterSet",
@@ -14,4 +17,6 @@ __all__ = [
     "SensorModelBase",
     "from_dict",
     "get_registry",
+    "image_shape",
+    "model_for_image",
 ]

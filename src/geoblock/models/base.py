@@ -22,7 +22,7 @@ import numpy as np
 
 from geoblock import coords
 from geoblock._array import broadcast_float64, warn_status
-from geoblock.errors import GeoblockError, ParameterSetError
+from geoblock.errors import GeoblockError, ModelFormatError, ParameterSetError
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import (
     ArrayLike,
@@ -34,7 +34,7 @@ from geoblock.typing import (
     Status,
 )
 
-__all__ = ["SensorModelBase", "canonical_json"]
+__all__ = ["SensorModelBase", "canonical_json", "image_shape"]
 
 _CONVERGED = np.uint8(Status.CONVERGED)
 
@@ -44,6 +44,71 @@ Kernel = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple]
 def canonical_json(data: Mapping[str, Any]) -> str:
     """The canonical JSON text of a model dictionary (sorted keys, no spaces)."""
     return json.dumps(data, sort_keys=True, separators=(",", ":"))
+
+
+def image_shape(value: Any, where: str, *, maximum: int = 10**7) -> tuple[int, int]:
+    """``(rows, cols)`` of an image, checked: two whole numbers of pixels from 1 to ``maximum``.
+
+    ``value`` is read once (a generator is fine). Each item may be an integer, a float or
+    numeric text (``"2920"``, ``"2920.0"``) holding a whole number; booleans, fractions,
+    non-finite numbers and values outside ``1..maximum`` are refused.
+
+    Parameters
+    ----------
+    value : iterable
+        The two sizes, ``(rows, cols)``.
+    where : str
+        What the shape belongs to (a file, a file and its fields, a class); every message
+        starts with it.
+    maximum : int
+        The largest size allowed per axis, pixels.
+
+    Returns
+    -------
+    (int, int)
+
+    Raises
+    ------
+    ModelFormatError
+        ``value`` is not two sizes, or a size is not a whole number of pixels in
+        ``1..maximum`` (the message names ``where``, the axis and the value).
+
+    Examples
+    --------
+    >>> image_shape([2920, "4000.0"], "scene.json")
+    (2920, 4000)
+    """
+    items: tuple[Any, ...] | None = None
+    if not isinstance(value, str | bytes):
+        try:
+            items = tuple(value)
+        except TypeError:
+            items = None
+    if items is None or len(items) != 2:
+        raise ModelFormatError(
+            f"{where}: image shape must be (rows, cols), two positive whole numbers of "
+            f"pixels, got {value if items is None else items!r}"
+        )
+    sizes = []
+    for axis, item in zip(("rows", "cols"), items, strict=True):
+        size: int | None = None
+        if isinstance(item, int | np.integer) and not isinstance(item, bool | np.bool_):
+            size = int(item)
+        elif not isinstance(item, bool | np.bool_):
+            try:
+                number = float(item.strip() if isinstance(item, str) else item)
+            except (TypeError, ValueError, OverflowError):
+                number = float("nan")
+            if np.isfinite(number) and number == int(number):
+                size = int(number)
+        if size is None or not 1 <= size <= maximum:
+            raise ModelFormatError(
+                f"{where}: image {axis} {item!r} is not a whole number of pixels from 1 to "
+                f"{maximum} (image sizes must be positive whole numbers of pixels; shape "
+                f"{items!r})"
+            )
+        sizes.append(size)
+    return sizes[0], sizes[1]
 
 
 class SensorModelBase(abc.ABC):

@@ -24,21 +24,16 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from geoblock.errors import GeoblockError
-from geoblock.models.base import SensorModelBase
+from geoblock.errors import CropError, ModelFormatError
+from geoblock.models.base import SensorModelBase, image_shape
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
-from geoblock.typing import ArrayLike, Float64Array, GroundCoords, ImageCoords
+from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = ["CropError", "CroppedModel", "model_for_image"]
 
 #: How far (pixels) a crop may stick out of its scene (fractional offsets, rounding).
 FIT_TOLERANCE_PX = 0.5
-
-
-class CropError(GeoblockError, ValueError):
-    """An image and a model do not fit: shapes differ with no crop offset, or the crop does not
-    lie inside the model's scene (the message gives both shapes and what to pass)."""
 
 
 def _offset(value: Any, what: str = "offset") -> tuple[float, float]:
@@ -53,13 +48,17 @@ def _offset(value: Any, what: str = "offset") -> tuple[float, float]:
 
 def _shape(value: Any) -> tuple[int, int]:
     try:
-        rows, cols = (int(v) for v in value)
-        ok = all(float(v) == int(v) for v in value)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise CropError(f"CroppedModel: shape must be (rows, cols), got {value!r}") from exc
-    if not ok or rows < 1 or cols < 1:
-        raise CropError(f"CroppedModel: shape must be two positive integers, got {value!r}")
-    return rows, cols
+        return image_shape(value, "CroppedModel")
+    except ModelFormatError as exc:
+        raise CropError(str(exc)) from exc
+
+
+def _fits(offset: tuple[float, float], shape: tuple[int, int],
+          scene: tuple[int, int]) -> bool:
+    """Whether a crop of ``shape`` at ``offset`` lies inside ``scene`` (to FIT_TOLERANCE_PX)."""
+    tol = FIT_TOLERANCE_PX
+    return all(-tol <= o and o + n <= s + tol
+               for o, n, s in zip(offset, shape, scene, strict=True))
 
 
 class CroppedModel(SensorModelBase):
@@ -79,6 +78,12 @@ class CroppedModel(SensorModelBase):
     shape : (int, int)
         ``(rows, cols)`` of the crop.
 
+    Raises
+    ------
+    CropError
+        ``offset`` is not two finite numbers, ``shape`` not two whole numbers of pixels, or
+        the crop does not lie inside ``model``'s scene (within :data:`FIT_TOLERANCE_PX`).
+
     Examples
     --------
     >>> from geoblock.testing.synthetic import AffineCamera
@@ -94,13 +99,21 @@ class CroppedModel(SensorModelBase):
 
     def __init__(self, model: SensorModel, offset: ArrayLike, shape: ArrayLike) -> None:
         row0, col0 = _offset(offset)
+        size = _shape(shape)
+        rows, cols = (int(v) for v in model.shape)
+        if not _fits((row0, col0), size, (rows, cols)):
+            raise CropError(
+                f"CroppedModel: the {size[0]} x {size[1]} px crop at row/col {row0:g}, "
+                f"{col0:g} does not lie inside the model's {rows} x {cols} px scene "
+                f"({model.name!r})"
+            )
         if isinstance(model, CroppedModel):
             row0 += model.offset[0]
             col0 += model.offset[1]
             model = model.model
         self._model = model
         self._offset = (row0, col0)
-        self._shape = _shape(shape)
+        self._shape = size
 
     @classmethod
     def example(cls) -> CroppedModel:
@@ -138,7 +151,7 @@ class CroppedModel(SensorModelBase):
 
     @property
     def parameter_sets(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(getattr(self._model, "parameter_sets", ("default",)))
+        return tuple(self._model.parameter_sets)
 
     def with_parameter_set(self, name: str, **options: Any) -> Self:
         inner = self._model.with_parameter_set(name, **options)
@@ -167,27 +180,16 @@ class CroppedModel(SensorModelBase):
             raise SerializationError(f"crop model: {exc}") from exc
 
     # ------------------------------------------------------------------ directions
-    # The public directions delegate to the wrapped model's (its statuses, its NaN handling)
-    # and shift; the kernels are the same shift on flat arrays, for SensorModelBase.
-    def project_with_status(
-        self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
-    ) -> tuple[ImageCoords, np.ndarray]:
+    # One path: SensorModelBase's public directions (broadcasting, NaN isolation, statuses,
+    # chunking) call these kernels, which shift and hand the flat finite points to the
+    # wrapped model's *_with_status (its statuses, its own chunking).
+    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
         (row, col), status = self._model.project_with_status(lon, lat, h)
-        return ImageCoords(row - self._offset[0], col - self._offset[1]), status
+        return row - self._offset[0], col - self._offset[1], status
 
-    def backproject_with_status(
-        self, row: ArrayLike, col: ArrayLike, h: ArrayLike
-    ) -> tuple[GroundCoords, np.ndarray]:
-        row = np.asarray(row, dtype=np.float64) + self._offset[0]
-        col = np.asarray(col, dtype=np.float64) + self._offset[1]
-        return self._model.backproject_with_status(row, col, h)
-
-    def _ground_to_image(self, lon, lat, h):
-        (row, col), status = self.project_with_status(lon, lat, h)
-        return row, col, status
-
-    def _image_to_ground(self, row, col, h):
-        (lon, lat, _), status = self.backproject_with_status(row, col, h)
+    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        (lon, lat, _), status = self._model.backproject_with_status(
+            row + self._offset[0], col + self._offset[1], h)
         return lon, lat, status
 
     def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
@@ -208,13 +210,6 @@ class CroppedModel(SensorModelBase):
 #: How a refusal names the ways out (the CLI passes its option names).
 PYTHON_NAMES = {"crop_offset": "crop_offset=(ROW0, COL0)", "no_crop": "crop=False"}
 CLI_NAMES = {"crop_offset": "--crop-offset ROW COL", "no_crop": "--no-crop"}
-
-
-def _fits(offset: tuple[float, float], shape: tuple[int, int],
-          scene: tuple[int, int]) -> bool:
-    tol = FIT_TOLERANCE_PX
-    return all(-tol <= o and o + n <= s + tol
-               for o, n, s in zip(offset, shape, scene, strict=True))
 
 
 def model_for_image(
@@ -293,7 +288,9 @@ def model_for_image(
             f"of the scene, pass {say['crop_offset']} (the scene pixel of its first pixel); "
             f"to use the model's pixels as they are, pass {say['no_crop']}"
         )
-    if not _fits(offset, shape, scene):
+    try:
+        return CroppedModel(model, offset, shape)  # checks that the crop lies in the scene
+    except CropError as exc:  # say it in the image's terms, with the ways out
         hint = (" (the model has the image's shape: it already describes the crop, so give no "
                 "offset)" if shape == scene else "")
         raise CropError(
@@ -301,5 +298,4 @@ def model_for_image(
             f"{offset[1]:g} ({stated}) does not lie inside the model's "
             f"{scene[0]} x {scene[1]} px scene ({model.name!r}){hint}; pass the right "
             f"{say['crop_offset']}, or {say['no_crop']} to use the model's pixels as they are"
-        )
-    return CroppedModel(model, offset, shape)
+        ) from exc

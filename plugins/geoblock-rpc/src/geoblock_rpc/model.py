@@ -11,6 +11,7 @@ import numpy as np
 
 from geoblock import GroundCoords, ImageCoords, ParameterSet, SensorModelBase, coords
 from geoblock.errors import ModelFormatError, SerializationError
+from geoblock.models import image_shape
 from geoblock.typing import ArrayLike, Float64Array
 from geoblock_rpc import _kernels
 from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
@@ -46,23 +47,6 @@ def _flat(*arrays: ArrayLike, names: tuple[str, ...]) -> tuple[tuple[int, ...], 
         return arrs[0].shape, [np.ascontiguousarray(a).ravel() for a in arrs]
     out = broadcast_float64(**dict(zip(names, arrays, strict=True)))
     return out[0].shape, [np.ascontiguousarray(a).ravel() for a in out]
-
-
-def _image_shape(shape: Any, source: str) -> tuple[int, int]:
-    """``(rows, cols)`` as whole numbers of pixels in 1 .. MAX_PIXELS, or ModelFormatError."""
-    try:
-        values = [float(v) for v in shape]
-    except (TypeError, ValueError):
-        values = []
-    if len(values) != 2 or any(isinstance(v, bool) for v in shape):
-        raise ModelFormatError(f"{source}: image shape must be (rows, cols), got {shape!r}")
-    for axis, value in zip(("rows", "cols"), values, strict=True):
-        if not (1 <= value <= MAX_PIXELS and value == math.floor(value)):
-            raise ModelFormatError(
-                f"{source}: image {axis} {value!r} is not a whole number of pixels in "
-                f"1..{MAX_PIXELS:g} (shape {tuple(shape)!r})"
-            )
-    return int(values[0]), int(values[1])
 
 
 class RpcModel(SensorModelBase):
@@ -118,7 +102,7 @@ class RpcModel(SensorModelBase):
                 max(1, math.ceil(rpc.line_off + abs(rpc.line_scale) + 0.5)),
                 max(1, math.ceil(rpc.samp_off + abs(rpc.samp_scale) + 0.5)),
             )
-        self._shape = _image_shape(shape, rpc.source)
+        self._shape = image_shape(shape, rpc.source, maximum=int(MAX_PIXELS))
         try:
             self._domain_limit = float(domain_limit)
             self._height_limit = float(height_limit)

@@ -50,7 +50,6 @@ import json
 import math
 import os
 import re
-import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -59,9 +58,11 @@ from typing import Any
 import numpy as np
 
 from geoblock.errors import ModelFormatError, UnsupportedFormatError
-from geoblock_rpc.rpc00b import Rpc00b
+from geoblock.io import open_image, open_quietly
+from geoblock.models import image_shape
+from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 
-__all__ = ["read_rpc", "sniff_rpc_format", "RPC00A_TO_B"]
+__all__ = ["RPC00A_TO_B", "ReaderOptionError", "read_rpc", "sniff_rpc_format"]
 
 Shape = tuple[int, int]
 Result = tuple[Rpc00b, Shape | None, dict[str, Any]]
@@ -93,22 +94,12 @@ def _require(md: Mapping[str, Any], keys: tuple[str, ...], path: Path, what: str
 
 
 def _image_size(path: Path, rows: Any, cols: Any, fields: str) -> Shape:
-    """``(rows, cols)`` as positive integers (whole-number text such as ``"2920.0"`` too).
+    """``(rows, cols)`` as whole numbers of pixels in 1 .. MAX_PIXELS (whole-number text such
+    as ``"2920.0"`` too), by :func:`geoblock.models.image_shape`.
 
     Raises :class:`ModelFormatError` naming the file and the ``fields`` otherwise.
     """
-    try:
-        values = [float(str(v).strip()) if not isinstance(v, int | float) else float(v)
-                  for v in (rows, cols)]
-    except (TypeError, ValueError):
-        values = []
-    if (len(values) != 2 or not all(math.isfinite(v) and v >= 1 and v == int(v)
-                                    for v in values)):
-        raise ModelFormatError(
-            f"{_src(path)}: {fields} must be positive whole numbers of pixels, got "
-            f"{rows!r}, {cols!r}"
-        )
-    return int(values[0]), int(values[1])
+    return image_shape((rows, cols), f"{_src(path)}: {fields}", maximum=int(MAX_PIXELS))
 
 
 def _xml_text(elem: ET.Element | None, tag: str, path: Path, where: str) -> str:
@@ -256,18 +247,15 @@ def _exact_tag_values(path: Path, gdal_items: dict[str, str]) -> dict[str, str]:
 
 
 def _parse_gdal(path: Path) -> Result | None:
-    import rasterio
-    from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
+    from rasterio.errors import RasterioIOError
 
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NotGeoreferencedWarning)
-            with rasterio.open(path) as ds:
-                rpcs = ds.rpcs
-                shape = (int(ds.height), int(ds.width))
-                driver = ds.driver
-                imd = ds.tags(ns="IMD") or {}
-                files = [Path(f).name for f in ds.files]
+        with open_quietly(path) as ds:
+            rpcs = ds.rpcs
+            shape = (int(ds.height), int(ds.width))
+            driver = ds.driver
+            imd = ds.tags(ns="IMD") or {}
+            files = [Path(f).name for f in ds.files]
     except RasterioIOError:
         return None
     if rpcs is None:
@@ -641,20 +629,9 @@ def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None
     if shape is None:
         d = valid.find("Direct_Model_Validity_Domain")
         if d is not None and d.findtext("LAST_ROW") and d.findtext("LAST_COL"):
-            last = []
-            for tag in ("LAST_ROW", "LAST_COL"):
-                text = d.findtext(tag) or ""
-                try:
-                    value = float(text)
-                except ValueError:
-                    value = math.nan
-                if not (math.isfinite(value) and value >= 1):
-                    raise ModelFormatError(
-                        f"{_src(path)}: {where}/RFM_Validity/Direct_Model_Validity_Domain/{tag} "
-                        f"must be a positive number of pixels, got {text.strip()!r}"
-                    )
-                last.append(int(value))
-            shape = (last[0], last[1])
+            shape = _image_size(
+                path, d.findtext("LAST_ROW"), d.findtext("LAST_COL"),
+                f"{where}/RFM_Validity/Direct_Model_Validity_Domain/LAST_ROW/LAST_COL")
     return rpc, shape, extra
 
 
@@ -747,13 +724,17 @@ def _read_xml_file(path: Path, _depth: int = 0) -> Result | None:
 
 # ---------------------------------------------------------------------------------- crops
 def _pixel_crop_origin(image: Path) -> tuple[float, float]:
-    import rasterio
-    from rasterio.errors import NotGeoreferencedWarning
+    """``(row0, col0)`` of ``image``'s pixel-unit geotransform (core's
+    :attr:`ImageSource.crop_offset <geoblock.io.images.ImageSource.crop_offset>`).
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NotGeoreferencedWarning)
-        with rasterio.open(image) as ds:
-            t, crs = ds.transform, ds.crs
+    Where the core states no crop (None), the plugin's outcome is kept: GDAL's default
+    identity geotransform is the crop at ``(0, 0)``; a CRS or a map geotransform is refused.
+    """
+    offset = open_image(image).crop_offset
+    if offset is not None:
+        return float(offset[0]), float(offset[1])
+    with open_quietly(image) as ds:
+        t, crs = ds.transform, ds.crs
     if crs is not None and crs.is_valid and (crs.is_geographic or crs.is_projected):
         raise ModelFormatError(
             f"{image}: crop_from_geotransform needs a pixel-unit geotransform, but the raster "
@@ -764,17 +745,7 @@ def _pixel_crop_origin(image: Path) -> tuple[float, float]:
             f"{image}: crop_from_geotransform needs a pixel-unit geotransform "
             f"(1, 0, col0, 0, 1, row0), got {tuple(t)[:6]}"
         )
-    return float(t.f), float(t.c)
-
-
-def _raster_shape(image: Path) -> Shape:
-    import rasterio
-    from rasterio.errors import NotGeoreferencedWarning
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NotGeoreferencedWarning)
-        with rasterio.open(image) as ds:
-            return int(ds.height), int(ds.width)
+    return float(t.f), float(t.c)  # the identity: (0, 0)
 
 
 # ---------------------------------------------------------------------------------- entry
@@ -839,7 +810,8 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
         crop = _pixel_crop_origin(source)
         extra["crop_source"] = str(source)
     if image is not None:
-        shape = _raster_shape(image)
+        rows, cols = open_image(image).shape
+        shape = (int(rows), int(cols))
         extra["image"] = str(image)
     if crop is not None:
         row0, col0 = (float(v) for v in crop)
@@ -885,6 +857,10 @@ def read_rpc(path: str | os.PathLike[str], **options: Any) -> Result:
     ModelFormatError
         The file is one of them but has no (or invalid) RPC coefficients; the message names
         the file and the missing field.
+    ReaderOptionError
+        An option is unknown or invalid (``crop_offset`` not finite, ``crop_offset`` with
+        ``crop_from_geotransform``); a :class:`~geoblock.errors.ModelFormatError` and a
+        ``TypeError``, naming the file and the option.
     """
     path = Path(path)
     result = _read(path, options)

@@ -22,12 +22,12 @@ What each format keeps:
 from __future__ import annotations
 
 import os
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from geoblock.errors import ModelFormatError
+from geoblock.io import open_quietly
 from geoblock_rpc.model import RpcModel
 from geoblock_rpc.rpc00b import Rpc00b
 
@@ -164,39 +164,36 @@ def write_gtiff(model: RpcModel, path: str | os.PathLike[str], create: bool = Tr
         ``path`` exists but is not a GeoTIFF GDAL can update, or is missing and ``create``
         is False.
     """
-    import rasterio
-    from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
+    from rasterio.errors import RasterioIOError
 
     path = Path(path)
     items = _gdal_items(_rpc(model))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NotGeoreferencedWarning)
-        if path.exists():
-            try:
-                with rasterio.open(path, "r+") as ds:
-                    if ds.driver != "GTiff":
-                        raise ModelFormatError(
-                            f"{path}: exists and is a {ds.driver} raster, not a GeoTIFF; "
-                            "refusing to write RPC tags into it")
-                    ds.update_tags(ns="RPC", **items)
-            except (RasterioIOError, TypeError) as exc:
-                raise ModelFormatError(f"{path}: exists but is not a GeoTIFF GDAL can update "
-                                       f"({exc})") from exc
-            return path
-        if not create:
-            raise ModelFormatError(f"{path}: does not exist (create=False)")
-        rows, cols = model.shape
-        profile: dict[str, Any] = {
-            "driver": "GTiff", "height": rows, "width": cols, "count": 1, "dtype": "uint8",
-            "compress": "deflate", "sparse_ok": True,
-        }
-        if rows >= 16 and cols >= 16:
-            block = 256 if min(rows, cols) >= 256 else 16
-            profile.update(tiled=True, blockxsize=block, blockysize=block)
-        if rows * cols > 2**32 - 1:
-            profile["bigtiff"] = "YES"
-        with rasterio.open(path, "w", **profile) as ds:
-            ds.update_tags(ns="RPC", **items)
+    if path.exists():
+        try:
+            with open_quietly(path, "r+") as ds:
+                if ds.driver != "GTiff":
+                    raise ModelFormatError(
+                        f"{path}: exists and is a {ds.driver} raster, not a GeoTIFF; "
+                        "refusing to write RPC tags into it")
+                ds.update_tags(ns="RPC", **items)
+        except (RasterioIOError, TypeError) as exc:
+            raise ModelFormatError(f"{path}: exists but is not a GeoTIFF GDAL can update "
+                                   f"({exc})") from exc
+        return path
+    if not create:
+        raise ModelFormatError(f"{path}: does not exist (create=False)")
+    rows, cols = model.shape
+    profile: dict[str, Any] = {
+        "driver": "GTiff", "height": rows, "width": cols, "count": 1, "dtype": "uint8",
+        "compress": "deflate", "sparse_ok": True,
+    }
+    if rows >= 16 and cols >= 16:
+        block = 256 if min(rows, cols) >= 256 else 16
+        profile.update(tiled=True, blockxsize=block, blockysize=block)
+    if rows * cols > 2**32 - 1:
+        profile["bigtiff"] = "YES"
+    with open_quietly(path, "w", **profile) as ds:
+        ds.update_tags(ns="RPC", **items)
     return path
 
 
