@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -36,8 +36,7 @@ import scipy.linalg
 
 from geoblock._array import broadcast_float64
 from geoblock.errors import ObservationError, SerializationError, TooFewPointsError
-from geoblock.models.base import SensorModelBase
-from geoblock.models.corrections import invert_correction
+from geoblock.models.corrections import ImageSpaceCorrection
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array
@@ -130,8 +129,9 @@ def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class Collocation:
     """A fitted least-squares collocation of image-space residual vectors (per axis).
 
-    Build it with :func:`fit_collocation`; the constructor does not check that the derived
-    fields (``mean``, ``mu``, ``weights``) match the data.
+    Build it with :func:`fit_collocation`, which checks the data and names what is wrong. The
+    constructor takes the data and the settings only and fits the derived fields (``mean``,
+    ``mu``, ``weights``) itself.
 
     Attributes
     ----------
@@ -164,23 +164,48 @@ class Collocation:
     col: Float64Array
     d_row: Float64Array
     d_col: Float64Array
-    mean: Float64Array
-    mu: Float64Array
+    mean: Float64Array = field(init=False)
+    mu: Float64Array = field(init=False)
     filtering_ratio: float
     d_max: float
-    weights: Float64Array
+    weights: Float64Array = field(init=False)
 
     def __post_init__(self) -> None:
-        for name in ("row", "col", "d_row", "d_col", "mean", "mu", "weights"):
+        for name in ("row", "col", "d_row", "d_col"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
         object.__setattr__(self, "filtering_ratio", float(self.filtering_ratio))
         object.__setattr__(self, "d_max", float(self.d_max))
-        n = self.row.shape[0]
-        if self.weights.shape != (2, n) or self.mean.shape != (2,) or self.mu.shape != (2,):
+        mean, mu, weights = self._fit()
+        for name, value in (("mean", mean), ("mu", mu), ("weights", weights)):
+            object.__setattr__(self, name, _frozen(value))
+
+    def _fit(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``mean`` (2,), ``mu`` (2,) and ``weights`` (2, n) of the data (see fit_collocation)."""
+        shapes = [getattr(self, k).shape for k in ("row", "col", "d_row", "d_col")]
+        if len(set(shapes)) != 1 or len(shapes[0]) != 1:
             raise ObservationError(
-                f"Collocation: weights must be (2, {n}), mean and mu (2,); got "
-                f"{self.weights.shape}, {self.mean.shape}, {self.mu.shape}"
+                "Collocation: row, col, d_row and d_col must be 1-D arrays of one shape (n,); "
+                f"got {shapes}"
             )
+        l_obs = np.stack([self.d_row, self.d_col])  # (2, n)
+        mean = l_obs.mean(axis=1)
+        centred = l_obs - mean[:, None]
+        mu = np.mean(centred * centred, axis=1)
+        # Sigma_k = mu_k R: R is eq. 5 with mu = 1 (1 on the diagonal, the signal correlation
+        # elsewhere; the points are distinct, so d == 0 on the diagonal only)
+        p = np.stack([self.row, self.col], axis=-1)
+        corr = gaussian_covariance(_distances(p, p), 1.0, self.d_max, self.filtering_ratio)
+        try:
+            factor = scipy.linalg.cho_factor(corr, lower=True, check_finite=True)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise ObservationError(
+                "Collocation: the covariance matrix is not positive definite (coincident or "
+                f"non-finite points, or a bad filtering_ratio or d_max?): {exc}"
+            ) from exc
+        solved = scipy.linalg.cho_solve(factor, centred.T, check_finite=False).T  # R^-1 (l - m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            weights = np.where(mu[:, None] > 0.0, solved / mu[:, None], 0.0)
+        return mean, mu, weights
 
     @property
     def n_points(self) -> int:
@@ -407,25 +432,14 @@ def fit_collocation(
             f"fit_collocation: row/col hold coincident control points (index pairs {pairs}); "
             "merge them (average their residuals) first"
         )
-    d_max = float(np.max(d)) if d_max is None else float(d_max)
+    d_max = default_d_max(arrays["row"], arrays["col"]) if d_max is None else float(d_max)
     if not (np.isfinite(d_max) and d_max > 0.0):
         raise ObservationError(f"fit_collocation: d_max must be finite and > 0 px, got {d_max!r}")
-    l_obs = np.stack([arrays["d_row"], arrays["d_col"]])  # (2, n)
-    mean = l_obs.mean(axis=1)
-    centred = l_obs - mean[:, None]
-    mu = np.mean(centred * centred, axis=1)
-    # Sigma_k = mu_k R: R has 1 on the diagonal (C(0) = mu) and the signal correlation elsewhere
-    corr = (1.0 - r_n) * np.exp(-((GAUSS_FACTOR * d / d_max) ** 2))
-    np.fill_diagonal(corr, 1.0)
-    factor = scipy.linalg.cho_factor(corr, lower=True, check_finite=False)
-    solved = scipy.linalg.cho_solve(factor, centred.T, check_finite=False).T  # R^-1 (l - m)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        weights = np.where(mu[:, None] > 0.0, solved / mu[:, None], 0.0)
     return Collocation(arrays["row"], arrays["col"], arrays["d_row"], arrays["d_col"],
-                       mean, mu, r_n, d_max, weights)
+                       filtering_ratio=r_n, d_max=d_max)
 
 
-class CollocationCorrection(SensorModelBase):
+class CollocationCorrection(ImageSpaceCorrection):
     """A sensor model corrected in image space by a least-squares collocation.
 
     ``project`` is the wrapped model's projection ``(r, c)`` plus the collocation's prediction
@@ -450,10 +464,6 @@ class CollocationCorrection(SensorModelBase):
 
     name: ClassVar[str] = "collocation"
     schema_version: ClassVar[int] = 1
-
-    #: tolerance (pixels) and iteration cap of the correction's inversion
-    inversion_tolerance_px: ClassVar[float] = 1e-10
-    inversion_max_iterations: ClassVar[int] = 20
 
     def __init__(self, model: SensorModel, collocation: Collocation) -> None:
         if not isinstance(collocation, Collocation):
@@ -481,26 +491,9 @@ class CollocationCorrection(SensorModelBase):
 
     # ------------------------------------------------------------------ state
     @property
-    def model(self) -> SensorModel:
-        """The wrapped model."""
-        return self._model
-
-    @property
     def collocation(self) -> Collocation:
         """The collocation applied to the wrapped model's image coordinates."""
         return self._collocation
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self._model.shape
-
-    @property
-    def height_range(self) -> tuple[float, float]:
-        return self._model.height_range
-
-    @property
-    def parameters(self) -> ParameterSet:
-        return self._parameters
 
     def with_parameters(self, values: ArrayLike) -> Self:
         """A copy; ``values`` must be empty (the model has no parameters)."""
@@ -525,7 +518,7 @@ class CollocationCorrection(SensorModelBase):
             raise SerializationError(f"collocation model dictionary lacks {exc}") from exc
         return cls(from_dict(base), Collocation.from_dict(colloc))
 
-    # ------------------------------------------------------------------ kernels
+    # ------------------------------------------------------------------ correction
     def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, 2) corrections and the (N, 2, 2) Jacobian of the corrected coords wrt (r, c)."""
         out, jac = self._collocation._evaluate(r, c, gradient=True)
@@ -533,22 +526,15 @@ class CollocationCorrection(SensorModelBase):
         jac[:, 1, 1] += 1.0
         return out, jac
 
-    def _ground_to_image(self, lon, lat, h):
-        (r, c), status = self._model.project_with_status(lon, lat, h)
+    def _offset(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """(N, 2) corrections, without their Jacobian."""
         out, _ = self._collocation._evaluate(r, c, gradient=False)
-        return r + out[:, 0], c + out[:, 1], status
+        return out
 
-    def _uncorrect(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Model coordinates (r, c) whose corrected values are (row, col): Newton, per point."""
-        out, _ = self._collocation._evaluate(row, col, gradient=False)
-        # fixed-point start
-        return invert_correction(self._correction, row, col, row - out[:, 0], col - out[:, 1],
-                                 self.inversion_tolerance_px, self.inversion_max_iterations)
-
-    def _image_to_ground(self, row, col, h):
-        r, c, status = self._uncorrect(row, col)
-        (lon, lat, _), inner = self._model.backproject_with_status(r, c, h)
-        return lon, lat, np.maximum(status, inner)
+    def _start(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fixed-point start: the corrected coordinates minus the correction there."""
+        out = self._offset(row, col)
+        return row - out[:, 0], col - out[:, 1]
 
     # ------------------------------------------------------------------ partials
     def partials_parameters(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
@@ -560,18 +546,6 @@ class CollocationCorrection(SensorModelBase):
         """
         lon, _, _ = broadcast_float64(lon=lon, lat=lat, h=h, _copy=False)
         return np.zeros(lon.shape + (2, 0))
-
-    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
-        """Chain rule: d(corrected)/d(model image coords) @ the wrapped model's ground partials.
-
-        Returns
-        -------
-        ndarray, (*S, 2, 3)
-            Pixels per metre (ECEF).
-        """
-        (r, c), _ = self._model.project_with_status(lon, lat, h)
-        _, jac = self._correction(r.ravel(), c.ravel())
-        return jac.reshape(r.shape + (2, 2)) @ self._model.partials_ground(lon, lat, h)
 
     def __repr__(self) -> str:
         return f"<CollocationCorrection ({self._collocation.n_points} points) of {self._model!r}>"

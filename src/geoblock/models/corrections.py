@@ -17,6 +17,7 @@ iteration. The wrapped model's own parameters stay fixed.
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, Self
 
@@ -27,12 +28,113 @@ from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array, Status
 
-__all__ = ["ImageCorrection", "invert_correction"]
+__all__ = ["ImageCorrection", "ImageSpaceCorrection", "invert_correction"]
 
 _N_TERMS = {0: 1, 1: 3, 2: 6}
 
 
-class ImageCorrection(SensorModelBase):
+class ImageSpaceCorrection(SensorModelBase):
+    """Base class of the image-space correction layers around any sensor model.
+
+    ``project`` is the wrapped model's projection ``(r, c)`` plus a correction
+    ``delta(r, c)``; ``backproject`` inverts the correction by Newton iteration
+    (:func:`invert_correction`), then backprojects with the wrapped model and keeps the worse
+    of the two statuses; ``partials_ground`` is the correction's Jacobian times the wrapped
+    model's ground partials. :class:`ImageCorrection` (polynomials) and
+    :class:`geoblock.adjust.collocation.CollocationCorrection` (least-squares collocation)
+    are the two built in.
+
+    A subclass sets ``self._model`` (the wrapped model) and ``self._parameters`` in its
+    constructor, implements :meth:`_correction` and the members every model implements
+    (``with_parameters``, ``to_dict``, ``from_dict``, ``partials_parameters``); it may
+    override :meth:`_start` (the Newton start) and :meth:`_offset` (the correction without its
+    Jacobian, where that is cheaper).
+    """
+
+    #: tolerance (pixels) and iteration cap of the correction's inversion
+    inversion_tolerance_px: ClassVar[float] = 1e-10
+    inversion_max_iterations: ClassVar[int] = 20
+
+    _model: SensorModel
+    _parameters: ParameterSet
+
+    # ------------------------------------------------------------------ state
+    @property
+    def model(self) -> SensorModel:
+        """The wrapped model."""
+        return self._model
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._model.shape
+
+    @property
+    def height_range(self) -> tuple[float, float]:
+        return self._model.height_range
+
+    @property
+    def parameters(self) -> ParameterSet:
+        return self._parameters
+
+    # ------------------------------------------------------------------ correction
+    @abc.abstractmethod
+    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The correction at the wrapped model's image coordinates.
+
+        Parameters
+        ----------
+        r, c : ndarray, (N,)
+            The wrapped model's image coordinates, pixels.
+
+        Returns
+        -------
+        delta : ndarray, (N, 2)
+            ``(d_row, d_col)``, pixels, to add to ``(r, c)``.
+        jacobian : ndarray, (N, 2, 2)
+            Of the corrected coordinates ``(r, c) + delta`` with respect to ``(r, c)``.
+        """
+
+    def _offset(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """``delta`` (N, 2) of :meth:`_correction` alone; override when it is cheaper."""
+        return self._correction(r, c)[0]
+
+    def _start(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Newton start ``(r0, c0)`` (N,) for corrected ``(row, col)``; fresh arrays (the
+        inversion updates them in place). Default: the corrected coordinates themselves."""
+        return row.copy(), col.copy()
+
+    # ------------------------------------------------------------------ kernels
+    def _ground_to_image(self, lon, lat, h):
+        (r, c), status = self._model.project_with_status(lon, lat, h)
+        delta = self._offset(r, c)
+        return r + delta[..., 0], c + delta[..., 1], status
+
+    def _uncorrect(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Model coordinates (r, c) whose corrected values are (row, col): Newton, per point."""
+        r0, c0 = self._start(row, col)
+        return invert_correction(self._correction, row, col, r0, c0,
+                                 self.inversion_tolerance_px, self.inversion_max_iterations)
+
+    def _image_to_ground(self, row, col, h):
+        r, c, status = self._uncorrect(row, col)
+        (lon, lat, _), inner = self._model.backproject_with_status(r, c, h)
+        return lon, lat, np.maximum(status, inner)
+
+    # ------------------------------------------------------------------ partials
+    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """Chain rule: d(corrected)/d(model image coords) @ the wrapped model's ground partials.
+
+        Returns
+        -------
+        ndarray, (*S, 2, 3)
+            Pixels per metre (ECEF).
+        """
+        (r, c), _ = self._model.project_with_status(lon, lat, h)
+        _, jac = self._correction(r.ravel(), c.ravel())
+        return jac.reshape(r.shape + (2, 2)) @ self._model.partials_ground(lon, lat, h)
+
+
+class ImageCorrection(ImageSpaceCorrection):
     """A sensor model with an image-space polynomial correction of order 0, 1 or 2.
 
     Parameters
@@ -80,26 +182,9 @@ class ImageCorrection(SensorModelBase):
 
     # ------------------------------------------------------------------ state
     @property
-    def model(self) -> SensorModel:
-        """The wrapped model."""
-        return self._model
-
-    @property
     def order(self) -> int:
         """Polynomial order (0, 1 or 2)."""
         return self._order
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self._model.shape
-
-    @property
-    def height_range(self) -> tuple[float, float]:
-        return self._model.height_range
-
-    @property
-    def parameters(self) -> ParameterSet:
-        return self._parameters
 
     def with_parameters(self, values: ArrayLike) -> Self:
         new = self._parameters.with_values(values)
@@ -134,10 +219,8 @@ class ImageCorrection(SensorModelBase):
         d_v = [zero, zero, one, zero, u, 2 * v][: _N_TERMS[self._order]]
         return (np.stack(terms, -1), np.stack(d_u, -1) / s, np.stack(d_v, -1) / s)
 
-    def _correction(
-        self, r: np.ndarray, c: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(drow, dcol) and the (N, 2, 2) Jacobian of the corrected coordinates wrt (r, c)."""
+    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 2) corrections and the (N, 2, 2) Jacobian of the corrected coords wrt (r, c)."""
         n = _N_TERMS[self._order]
         a, b = self._parameters.values[:n], self._parameters.values[n:]
         terms, d_r, d_c = self._basis(r, c)
@@ -146,32 +229,7 @@ class ImageCorrection(SensorModelBase):
         jac[..., 0, 1] = d_c @ a
         jac[..., 1, 0] = d_r @ b
         jac[..., 1, 1] = 1.0 + d_c @ b
-        return terms @ a, terms @ b, jac
-
-    # ------------------------------------------------------------------ kernels
-    def _ground_to_image(self, lon, lat, h):
-        (r, c), status = self._model.project_with_status(lon, lat, h)
-        dr, dc, _ = self._correction(r, c)
-        return r + dr, c + dc, status
-
-    #: tolerance (pixels) and iteration cap of the correction's inversion
-    inversion_tolerance_px: ClassVar[float] = 1e-10
-    inversion_max_iterations: ClassVar[int] = 20
-
-    def _uncorrect(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Model coordinates (r, c) whose corrected values are (row, col): Newton, per point."""
-
-        def correction(r, c):
-            dr, dc, jac = self._correction(r, c)
-            return np.stack([dr, dc], axis=-1), jac
-
-        return invert_correction(correction, row, col, row.copy(), col.copy(),
-                                 self.inversion_tolerance_px, self.inversion_max_iterations)
-
-    def _image_to_ground(self, row, col, h):
-        r, c, status = self._uncorrect(row, col)
-        (lon, lat, _), inner = self._model.backproject_with_status(r, c, h)
-        return lon, lat, np.maximum(status, inner)
+        return np.stack([terms @ a, terms @ b], axis=-1), jac
 
     # ------------------------------------------------------------------ partials
     def partials_parameters(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
@@ -190,12 +248,6 @@ class ImageCorrection(SensorModelBase):
         out[..., 1, n:] = terms
         return out
 
-    def partials_ground(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
-        """Chain rule: d(corrected)/d(model image coords) @ the wrapped model's ground partials."""
-        (r, c), _ = self._model.project_with_status(lon, lat, h)
-        _, _, jac = self._correction(r, c)
-        return jac @ self._model.partials_ground(lon, lat, h)
-
     def __repr__(self) -> str:
         return f"<ImageCorrection order {self._order} of {self._model!r}>"
 
@@ -207,8 +259,9 @@ def invert_correction(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Invert an image-space correction ``(row, col) = (r, c) + correction(r, c)`` by Newton.
 
-    Shared by every correction layer around a model (:class:`ImageCorrection`,
-    :class:`geoblock.adjust.collocation.CollocationCorrection`).
+    What :class:`ImageSpaceCorrection` backprojects with, so every correction layer around a
+    model (:class:`ImageCorrection`, :class:`geoblock.adjust.collocation.CollocationCorrection`)
+    shares it.
 
     Parameters
     ----------
