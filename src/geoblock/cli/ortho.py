@@ -13,9 +13,7 @@ from geoblock.cli.options import (
     nonnegative_float,
     positive_float,
 )
-
-#: geoblock.ortho.grid.MAX_PIXELS, without importing numpy/pyproj when the CLI starts
-MAX_PIXELS = 2**36
+from geoblock.ortho.grid import MAX_PIXELS
 
 __all__ = ["ortho"]
 
@@ -101,11 +99,10 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offse
     from geoblock.io.images import open_image, write_ortho
     from geoblock.ortho import OutputGrid, orthorectify
 
-    if no_crop and crop_offset:
-        raise click.UsageError("give --crop-offset or --no-crop, not both")
     model = open_model(model_file if model_file is not None else image)
     source = open_image(image)
-    # a crop of the model's scene: shifted, or refused when nothing says where it lies
+    # a crop of the model's scene: shifted, or refused when nothing says where it lies (also
+    # refuses --crop-offset with --no-crop)
     model = model_for_image_arg(model, source, crop_offset, no_crop)
     dem = open_dem(dem_source, vertical=dem_vertical, geoid=geoid)
     if bounds and resolution is not None and crs is not None:
@@ -116,8 +113,9 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offse
                                     align=not bounds, max_pixels=None)
     names = {"resolution": "--res", "bounds": "--bounds", "max_pixels": "--max-pixels"}
     grid.check(max_pixels=max_pixels, names=names)  # before the graph: 10^20 pixels is no job
+    # the model is reconciled with the image already (crop offset applied, or --no-crop)
     data = orthorectify(source, model, dem, grid, kernel=resampling, tolerance_px=tolerance,
-                        chunks=chunks)
+                        chunks=chunks, crop=False)
     driver = "COG" if cog else "GTiff"
     empty = "warn" if allow_empty else "error"
     try:

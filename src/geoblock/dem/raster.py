@@ -49,6 +49,7 @@ from affine import Affine
 from geoblock import coords
 from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
+from geoblock._rasterio import cached_dataset as _dataset
 from geoblock._rasterio import open_quietly
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
@@ -126,41 +127,6 @@ class BlockCache:
 
 BLOCK_CACHE = BlockCache(int(float(os.environ.get("GEOBLOCK_DEM_CACHE_MB", "256")) * 2**20))
 """The process-wide DEM block cache shared by every :class:`RasterDem`."""
-
-# ---------------------------------------------------------------------------- dataset handles
-_handles = threading.local()  # per thread: path -> (signature, open rasterio dataset)
-
-
-def _signature(path: str) -> tuple[int, int, int] | None:
-    """What identifies the file's current contents (None for non-local paths)."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return (st.st_ino, st.st_size, st.st_mtime_ns)
-
-
-def _dataset(path: str) -> Any:
-    """An open rasterio dataset of ``path``, kept per thread (reopened when the file
-    changes), so that repeated window reads do not pay for ``rasterio.open``."""
-    import rasterio
-
-    cache = getattr(_handles, "datasets", None)
-    if cache is None or getattr(_handles, "pid", None) != os.getpid():
-        # (a forked child never reads through its parent's handles: shared file offsets)
-        cache = _handles.datasets = {}
-        _handles.pid = os.getpid()
-    sig = _signature(path)
-    found = cache.get(path)
-    if found is not None:
-        if found[0] == sig and not found[1].closed:
-            return found[1]
-        found[1].close()
-        del cache[path]
-    ds = rasterio.open(path)
-    cache[path] = (sig, ds)
-    return ds
-
 
 _stats: dict[Any, tuple[float, float, int, int]] = {}  # full-raster statistics, per file+options
 _stats_lock = threading.Lock()

@@ -1,7 +1,8 @@
 """Atomic writes: every file geoblock writes appears complete under its name or not at all.
 
 A file ``DIR/NAME`` is written under a hidden temporary ``DIR/.NAME.<12 hex digits>.tmp``
-(``write_ortho``'s COG step also uses ``DIR/.NAME.<12 hex digits>.cog.tmp``) and renamed to
+(``write_ortho``'s COG step uses a second one; ``.cog.tmp`` names of older runs are still
+recognised as stale) and renamed to
 ``NAME`` only when complete. An exception, ``Ctrl-C`` or ``SIGTERM`` (the ``geoblock`` command
 turns it into the same clean-up path, see :func:`geoblock.cli.main.main`) removes the temporary.
 Only ``SIGKILL``, a crash of the interpreter or a power cut can leave one behind; the next write

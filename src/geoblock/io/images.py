@@ -1,8 +1,9 @@
 """Source images (read lazily, window by window) and orthoimage writing (tiled GeoTIFF / COG).
 
 * :func:`open_image` returns an :class:`ImageSource`: the path and what the orthorectifier
-  needs to know before reading (shape, bands, dtype, nodata). It holds no open dataset, so it
-  pickles by path to dask workers; :meth:`ImageSource.read` opens the file and reads one window.
+  needs to know before reading (shape, bands, dtype, nodata, georeferencing). It holds no open
+  dataset, so it pickles by path to dask workers; :meth:`ImageSource.read` reads one window
+  through a dataset kept open per thread (:func:`geoblock._rasterio.cached_dataset`).
 * :func:`write_ortho` computes a lazy ``(band, y, x)`` :class:`xarray.DataArray` chunk by chunk
   and writes it as a tiled GeoTIFF or a COG, under a temporary name in the destination
   directory, renamed to ``path`` only when everything was written: a failed or interrupted run
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import math
 import os
-import uuid
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from geoblock._rasterio import open_quietly
+from geoblock._rasterio import cached_dataset, open_quietly
 from geoblock.errors import EmptyOutputError, EmptyOutputWarning, GeoblockIOError
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
@@ -31,17 +31,6 @@ from geoblock.io._progress import Progress as _Progress
 __all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
 
 PathLike = str | os.PathLike[str]
-
-
-
-
-def ds_open(name: str) -> Any:
-    """``rasterio.open(name)`` without the ``NotGeoreferencedWarning`` of raw images.
-
-    Serialised with every other quiet open (:func:`geoblock._rasterio.open_quietly`):
-    ``warnings.catch_warnings`` is not thread-safe.
-    """
-    return open_quietly(name)
 
 
 @dataclass(frozen=True)
@@ -66,6 +55,10 @@ class ImageSource:
         ``gdal_translate -srcwin`` writes on a raw image; shareloc's Ventoux crops); None
         otherwise (no geotransform, GDAL's default identity one, or a map geotransform).
         :func:`geoblock.models.crop.model_for_image` shifts a full-scene model by it.
+    crs : rasterio.crs.CRS or None
+        The file's CRS, if any.
+    transform : affine.Affine or None
+        The file's geotransform (rasterio order; the identity when the file has none).
     """
 
     path: str
@@ -74,6 +67,8 @@ class ImageSource:
     dtype: str
     nodata: float | None = None
     crop_offset: tuple[float, float] | None = None
+    crs: Any = None
+    transform: Any = None
 
     def read(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Read a window of every band.
@@ -95,8 +90,9 @@ class ImageSource:
             window = (0, self.shape[0], 0, self.shape[1])
         r0, r1, c0, c1 = (int(v) for v in window)
         try:
-            with ds_open(self.path) as ds:
-                return ds.read(window=Window(c0, r0, c1 - c0, r1 - r0))
+            # kept open per thread: one window per ortho/mosaic chunk, no open per read
+            ds = cached_dataset(self.path)
+            return ds.read(window=Window(c0, r0, c1 - c0, r1 - r0))
         except rasterio.errors.RasterioIOError as exc:
             raise GeoblockIOError(f"cannot read the image {self.path}: {exc}") from exc
 
@@ -107,7 +103,8 @@ class ImageSource:
         except OSError:
             stamp = ()
         return ("ImageSource", self.path, self.shape, self.bands, self.dtype, self.nodata,
-                self.crop_offset, stamp)
+                self.crop_offset, None if self.crs is None else str(self.crs),
+                None if self.transform is None else tuple(self.transform), stamp)
 
 
 def open_image(path: PathLike | ImageSource) -> ImageSource:
@@ -138,7 +135,7 @@ def open_image(path: PathLike | ImageSource) -> ImageSource:
     if os.path.exists(name):
         name = str(Path(name).resolve())
     try:
-        with ds_open(name) as ds:
+        with open_quietly(name) as ds:
             nodata = ds.nodata
             return ImageSource(
                 path=name,
@@ -147,6 +144,8 @@ def open_image(path: PathLike | ImageSource) -> ImageSource:
                 dtype=str(np.dtype(ds.dtypes[0])),
                 nodata=None if nodata is None else float(nodata),
                 crop_offset=pixel_crop_offset(ds.transform, ds.crs),
+                crs=ds.crs,
+                transform=ds.transform,
             )
     except rasterio.errors.RasterioIOError as exc:
         raise GeoblockIOError(f"cannot open the image {name}: {exc}") from exc
@@ -230,24 +229,15 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
     client = _distributed_client(scheduler)
     try:
         if client is not None:
-            pending = deque(items)
-            window: deque = deque()  # (future, row0, col0), in submission (row-major) order
-            try:
-                while pending and len(window) < in_flight:
-                    r0, c0, d = pending.popleft()
-                    window.append((client.compute(d), r0, c0))
-                while window:
-                    fut, r0, c0 = window.popleft()
-                    block = fut.result()
-                    fut.release()
-                    if pending:
-                        nr0, nc0, d = pending.popleft()
-                        window.append((client.compute(d), nr0, nc0))
-                    bar.update()
-                    yield r0, c0, block
-            finally:
-                for fut, _, _ in window:
-                    fut.release()
+            def result(fut: Any) -> Any:
+                block = fut.result()
+                fut.release()
+                return block
+
+            for r0, c0, block in _in_order(items, in_flight, client.compute, result,
+                                           lambda fut: fut.release()):
+                bar.update()
+                yield r0, c0, block
         elif _local_threads(scheduler):
             # dask's threaded scheduler, pipelined: a pool of one thread per core computes
             # chunks while this thread writes the finished ones (dask.compute on batches
@@ -279,31 +269,39 @@ def _compute_one(delayed: Any) -> Any:
     return dask.compute(delayed, scheduler="synchronous")[0]
 
 
+def _in_order(items: list, in_flight: int, submit: Any, result: Any, drop: Any):
+    """Yield ``(row0, col0, block)`` of ``items`` (``(row0, col0, delayed)``) in their order,
+    with up to ``in_flight`` of them submitted ahead of the one yielded: ``submit(delayed)``
+    starts a computation and returns its handle, ``result(handle)`` waits for its block,
+    ``drop(handle)`` abandons one still in flight (when the consumer stops early)."""
+    pending = deque(items)
+    window: deque = deque()  # (handle, row0, col0), in ``items`` order
+    try:
+        while pending and len(window) < in_flight:
+            r0, c0, d = pending.popleft()
+            window.append((submit(d), r0, c0))
+        while window:
+            handle, r0, c0 = window.popleft()
+            block = result(handle)
+            if pending:
+                nr0, nc0, d = pending.popleft()
+                window.append((submit(d), nr0, nc0))
+            yield r0, c0, block
+    finally:
+        for handle, _, _ in window:
+            drop(handle)
+
+
 def _iter_threads(items: list, in_flight: int, bar: Any):
     """:func:`_iter_blocks` on a thread pool: up to ``in_flight`` chunks computed ahead of the
     one yielded, yielded in ``items`` order."""
     import concurrent.futures as cf
 
-    pending = deque(items)
-    window: deque = deque()  # (future, row0, col0), in ``items`` order
     with cf.ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="geoblock") as pool:
-        def submit() -> None:
-            r0, c0, d = pending.popleft()
-            window.append((pool.submit(_compute_one, d), r0, c0))
-
-        try:
-            while pending and len(window) < in_flight:
-                submit()
-            while window:
-                fut, r0, c0 = window.popleft()
-                block = fut.result()
-                if pending:
-                    submit()
-                bar.update()
-                yield r0, c0, block
-        finally:
-            for fut, _, _ in window:
-                fut.cancel()
+        for r0, c0, block in _in_order(items, in_flight, lambda d: pool.submit(_compute_one, d),
+                                       lambda fut: fut.result(), lambda fut: fut.cancel()):
+            bar.update()
+            yield r0, c0, block
 
 
 def _has_valid(block: np.ndarray, nodata: float | None) -> bool:
@@ -437,20 +435,39 @@ def write_ortho(
     EmptyOutputError
         No pixel is valid and ``empty="error"``.
     """
-    import dask.array as da
-    import rasterio
-    import rasterio.shutil
-
     path = Path(path)
     if driver.upper() not in ("GTIFF", "COG"):
         raise ValueError(f"write_ortho: driver must be 'GTiff' or 'COG', got {driver!r}")
     if empty not in EMPTY:
         raise ValueError(f"write_ortho: empty must be one of {EMPTY}, got {empty!r}")
-    if not path.parent.is_dir():
-        raise GeoblockIOError(f"cannot write {path}: the directory {path.parent} does not exist")
-    from geoblock.io._atomic import remove_stale_temporaries
+    try:
+        # the directory is checked and stale temporaries of ``path`` removed on entry; ``tmp``
+        # is renamed to ``path`` on success, removed on any failure
+        with atomic_path(path) as tmp:
+            _write_ortho(data, path, tmp, driver=driver, blocksize=blocksize,
+                         compress=compress, nodata=nodata, scheduler=scheduler,
+                         in_flight=in_flight, progress=progress, empty=empty,
+                         creation_options=creation_options)
+    except GeoblockIOError as exc:
+        inner = exc.__cause__
+        if isinstance(inner, GeoblockIOError):  # an input's error (a source image): as it is
+            raise inner from inner.__cause__
+        raise
+    return path
 
-    remove_stale_temporaries(path)  # left by a killed earlier run of the same output
+
+def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: int,
+                 compress: str | None, nodata: float | None, scheduler: Any,
+                 in_flight: int | None, progress: bool, empty: str,
+                 creation_options: dict[str, Any]) -> None:
+    """:func:`write_ortho`'s work: the file written to ``tmp`` (the COG through a second
+    temporary GeoTIFF beside it)."""
+    import dask.array as da
+    import rasterio
+    import rasterio.shutil
+
+    from geoblock.io._atomic import _temporary_for
+
     if tuple(data.dims) != ("band", "y", "x"):
         raise ValueError(f"write_ortho: dims must be ('band', 'y', 'x'), got {data.dims}")
     wkt, transform = _georeferencing(data)
@@ -465,8 +482,6 @@ def write_ortho(
     dtype = np.dtype(array.dtype)
     if in_flight is None:
         in_flight = 2 * (os.cpu_count() or 1)
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"
-    cog_tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.cog.tmp"
     profile: dict[str, Any] = {
         "driver": "GTiff",
         "width": cols,
@@ -491,8 +506,10 @@ def write_ortho(
     valid_nodata = profile.get("nodata")
     valid_nodata = None if valid_nodata is None else float(valid_nodata)
     any_valid = empty == "ignore"
+    cog = driver.upper() == "COG"
+    gtiff = _temporary_for(path) if cog else tmp
     try:
-        with rasterio.open(tmp, "w", **profile) as dst:
+        with rasterio.open(gtiff, "w", **profile) as dst:
             strips = _TileRows(dst, bands, rows, cols, int(profile["blockysize"]),
                                np.dtype(profile["dtype"]))
             for r0, c0, block in _iter_blocks(array, scheduler, in_flight, progress):
@@ -508,22 +525,13 @@ def write_ortho(
                        f"({valid_nodata if valid_nodata is not None else 'NaN'})")
             if empty == "error":
                 raise EmptyOutputError(message + "; nothing was written")
-            warnings.warn(message + "; written anyway", EmptyOutputWarning, stacklevel=2)
-        if driver.upper() == "COG":
+            warnings.warn(message + "; written anyway", EmptyOutputWarning, stacklevel=3)
+        if cog:
             options = {"compress": compress} if compress else {}
-            rasterio.shutil.copy(tmp, cog_tmp, driver="COG", blocksize=int(blocksize), **options)
-            os.replace(cog_tmp, path)
-        else:
-            os.replace(tmp, path)
-    except rasterio.errors.RasterioIOError as exc:
-        raise GeoblockIOError(f"cannot write {path}: {exc}") from exc
+            rasterio.shutil.copy(gtiff, tmp, driver="COG", blocksize=int(blocksize), **options)
     finally:
-        for leftover in (tmp, cog_tmp):
-            try:
-                leftover.unlink()
-            except FileNotFoundError:
-                pass
-    return path
+        if cog:
+            gtiff.unlink(missing_ok=True)
 
 
 

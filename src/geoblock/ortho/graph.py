@@ -124,6 +124,8 @@ def orthorectify(
     chunks: int | tuple[int, int] = 1024,
     nodata: float | None = None,
     block_px: int = BLOCK_PX,
+    crop_offset: tuple[float, float] | None = None,
+    crop: bool = True,
 ) -> Any:
     """Orthorectify an image: a lazy ``(band, y, x)`` DataArray on an output grid.
 
@@ -154,6 +156,13 @@ def orthorectify(
         nodata); default the source nodata, else NaN for float images and 0 for integers.
     block_px : int
         Lattice block side, output pixels (a power of two).
+    crop_offset : (float, float), optional
+        ``(row0, col0)``: the image is the crop of ``model``'s scene whose first pixel is
+        scene pixel ``(row0, col0)``; default: as the image's pixel-unit geotransform states
+        it, if it does (:func:`~geoblock.models.crop.model_for_image`).
+    crop : bool
+        False: use ``model`` as it is, image pixel ``(r, c)`` being model pixel ``(r, c)``
+        (no crop offset, no shape check; e.g. a model already reconciled with the image).
 
     Returns
     -------
@@ -179,7 +188,7 @@ def orthorectify(
     src = open_image(image)
     # a crop of a scene (pixel-unit geotransform) addresses the scene model at its offset; an
     # image whose shape differs from the model's with no crop information is refused
-    model = model_for_image(model, src)
+    model = model_for_image(model, src, crop_offset=crop_offset, crop=crop)
     if grid is None:
         grid = OutputGrid.for_model(model, dem)
     dtype = np.dtype(src.dtype)

@@ -125,6 +125,17 @@ def _resolution_pair(resolution: float | tuple[float, float]) -> tuple[float, fl
     return xres, yres
 
 
+def _crs(value: Any, where: str) -> pyproj.CRS:
+    """``pyproj.CRS.from_user_input(value)``; a CRS pyproj cannot read is a :class:`GridError`
+    (``parameter="crs"``)."""
+    try:
+        return pyproj.CRS.from_user_input(value)
+    except pyproj.exceptions.CRSError as exc:
+        detail = " ".join(str(exc).split())
+        raise GridError(f"{where}: {value!r} is not a CRS pyproj knows ({detail})",
+                        parameter="crs") from exc
+
+
 @dataclass(frozen=True, eq=False)
 class OutputGrid:
     """A north-up raster grid in a map CRS.
@@ -139,6 +150,13 @@ class OutputGrid:
     shape : (int, int)
         ``(rows, cols)``, both positive.
 
+    Raises
+    ------
+    GridError
+        ``crs`` is not a CRS pyproj reads (``parameter="crs"``).
+    ValueError
+        The transform is not north-up or not finite, or the shape is not positive.
+
     Notes
     -----
     Equality, hashing, pickling and the dask token all go through :meth:`to_dict` (CRS as
@@ -150,7 +168,7 @@ class OutputGrid:
     shape: tuple[int, int]
 
     def __post_init__(self) -> None:
-        crs = pyproj.CRS.from_user_input(self.crs)
+        crs = _crs(self.crs, "OutputGrid")
         t = self.transform
         if not isinstance(t, Affine):
             t = Affine(*tuple(t)[:6])
@@ -263,7 +281,8 @@ class OutputGrid:
         Raises
         ------
         GridError
-            The grid is impossible (:meth:`check`), or the resolution or bounds are invalid.
+            The grid is impossible (:meth:`check`), or the CRS, resolution or bounds are
+            invalid.
         """
         from geoblock.dem import ConstantDem, localize
 
@@ -280,7 +299,7 @@ class OutputGrid:
             lon, lat = _scene_outline(model, dem, h_centre)
             if crs is None:
                 crs = coords.utm_crs(lon, lat)
-        crs = pyproj.CRS.from_user_input(crs)
+        crs = _crs(crs, "OutputGrid.for_model")
         if resolution is None:
             resolution = nice_resolution(_gsd(model, rc, cc, h_centre, crs))
         if bounds is None:

@@ -35,6 +35,7 @@ mosaic`` does with its inputs).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Sequence
@@ -426,14 +427,15 @@ def open_ortho(path: str | os.PathLike[str], chunks: int | tuple[int, int] = 102
     from dask.base import tokenize
     from dask.highlevelgraph import HighLevelGraph
 
-    from geoblock.io.images import ds_open, open_image
+    from geoblock.io.images import open_image
     from geoblock.ortho.graph import _coords
     from geoblock.ortho.grid import OutputGrid
 
-    image = open_image(path)
-    with ds_open(image.path) as ds:
-        crs = ds.crs
-        transform = ds.transform
+    image = open_image(path)  # one open: shape, bands, dtype, nodata, CRS and geotransform
+    if image.transform is None:  # an ImageSource made by hand: its file's georeferencing
+        fresh = open_image(image.path)
+        image = dataclasses.replace(image, crs=fresh.crs, transform=fresh.transform)
+    crs, transform = image.crs, image.transform
     if crs is None:
         raise MosaicError(f"{image.path} has no CRS: it is not an ortho")
     try:
