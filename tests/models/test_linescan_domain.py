@@ -88,3 +88,12 @@ def test_an_ephemeris_that_is_not_an_orbit_is_refused(tmp_path):
     path.write_text(json.dumps(data))
     with pytest.raises(GeoblockError, match="bad.json.*not an orbit|not an orbit.*bad.json"):
         geoblock.open_model(path)
+
+
+@pytest.mark.parametrize("heights", ["abc", "12", (1.0,), (1.0, 2.0, 3.0), ("a", 1.0), 7, None])
+def test_height_range_that_is_not_two_numbers_is_a_model_format_error(heights):
+    from geoblock.errors import ModelFormatError
+    from geoblock.models.linescan import LinescanModel
+
+    with pytest.raises(ModelFormatError, match="height_range"):
+        LinescanModel.example().replace(height_range=heights)

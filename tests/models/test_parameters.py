@@ -56,3 +56,21 @@ def test_invalid(kwargs, message):
 def test_from_dict_errors():
     with pytest.raises(SerializationError, match="invalid parameter set"):
         ParameterSet.from_dict({"names": ["a"]})
+
+
+def test_location_accuracy_helper():
+    from geoblock.errors import ModelFormatError, ParameterSetError
+    from geoblock.models.parameters import accuracy_or_stored, location_accuracy
+
+    assert location_accuracy("2.5", "x") == 2.5 and location_accuracy(3, "x") == 3.0
+    for bad in (0.0, -1.0, float("nan"), float("inf"), "ten", None, [1.0]):
+        with pytest.raises(ModelFormatError, match=r"^where: must be finite and > 0"):
+            location_accuracy(bad, "where")
+    with pytest.raises(ParameterSetError):
+        location_accuracy(0.0, "where", ParameterSetError)
+    assert accuracy_or_stored(5.0, 12.0, "M", "dg") == 5.0
+    assert accuracy_or_stored(None, 12.0, "M", "dg") == 12.0
+    with pytest.raises(ParameterSetError, match=r"M: parameter set 'dg'.*pass sigmas="):
+        accuracy_or_stored(None, None, "M", "dg", advice="sigmas=")
+    with pytest.raises(ParameterSetError, match=r"M, parameter set 'dg': accuracy_m"):
+        accuracy_or_stored(-1.0, 12.0, "M", "dg")

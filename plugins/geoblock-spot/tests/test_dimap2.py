@@ -296,3 +296,43 @@ class TestDimap2Contract(SensorModelContract):
         if request.param == "spot6":
             return dimap2_model(_path(data_dir, SPOT6))
         return dimap2_model(_path(data_dir, PHR_2018), parameters="dg", accuracy_m=5.0)
+
+
+# ---- options given directly to dimap2_model (not through the plugin's hook)
+@pytest.mark.parametrize("step", [0, 0.0, -1.0, float("nan"), float("inf"), 11.0, "x", True,
+                                  None])
+def test_direct_call_refuses_a_bad_attitude_step_naming_the_file(step, data_dir):
+    path = _path(data_dir, PHR_2018)
+    with pytest.raises(DimapFormatError, match="attitude_step_s") as info:
+        dimap2_model(path, attitude_step_s=step)
+    assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize("heights", ["abc", "12", (1.0,), (1.0, 2.0, 3.0), ("a", 1.0),
+                                     (5.0, 1.0), (0.0, float("nan")), 7])
+def test_direct_call_refuses_a_bad_height_range_naming_the_file(heights, data_dir):
+    path = _path(data_dir, SPOT6)
+    with pytest.raises(DimapFormatError, match="height_range") as info:
+        dimap2_model(path, height_range=heights)
+    assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize("accuracy", [0.0, -3.0, float("nan"), "ten"])
+def test_direct_call_refuses_a_bad_accuracy_naming_the_file(accuracy, data_dir):
+    path = _path(data_dir, SPOT6)
+    with pytest.raises(DimapFormatError, match="accuracy_m") as info:
+        dimap2_model(path, accuracy_m=accuracy)
+    assert str(path) in str(info.value)
+
+
+def test_direct_call_parameter_errors_name_the_file_and_keep_their_class(data_dir):
+    from geoblock.errors import ParameterSetError
+
+    path = _path(data_dir, SPOT6)
+    for parameters in ("bogus", 3, "default"):
+        with pytest.raises(ParameterSetError, match="parameters must be") as info:
+            dimap2_model(path, parameters=parameters)
+        assert str(path) in str(info.value)
+    with pytest.raises(ParameterSetError, match="accuracy_m") as info:
+        dimap2_model(path, parameters="dg")
+    assert str(path) in str(info.value) and info.value.path == str(path)

@@ -220,3 +220,18 @@ def test_ground_to_image_converges_over_the_full_scene(data_dir, name, h):
     (r2, c2), status2 = model.project_with_status(lon, lat, hh)
     assert (status2 == 0).all()
     assert np.max(np.hypot(r2 - r, c2 - c)) < 1e-8
+
+
+def test_direct_call_refuses_a_bad_height_range_naming_the_file(data_dir):
+    path = data_dir / SPOT[3]
+    if not path.exists():
+        pytest.skip(f"{SPOT[3]} not in the test data")
+    for heights in ("abc", (1.0,), (5.0, 1.0)):
+        with pytest.raises(DimapFormatError, match="height_range") as info:
+            spot_dimap_model(path, height_range=heights)
+        assert str(path) in str(info.value)
+    from geoblock.errors import ParameterSetError
+
+    with pytest.raises(ParameterSetError, match="parameters must be") as info:
+        spot_dimap_model(path, parameters=3)
+    assert str(path) in str(info.value)

@@ -1,5 +1,6 @@
 """The one place geoblock opens files: sensor models, DEMs, images, point files and block files."""
 
+from geoblock._rasterio import open_quietly
 from geoblock.io.blocks import (
     Block,
     BlockDem,
@@ -9,7 +10,6 @@ from geoblock.io.blocks import (
     read_block,
     write_block,
 )
-from geoblock._rasterio import open_quietly
 from geoblock.io.dem import open_dem, write_dem
 from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
 from geoblock.io.models import open_model, write_model

@@ -43,7 +43,7 @@ import numpy as np
 from geoblock import coords
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models.base import SensorModelBase
-from geoblock.models.parameters import ParameterSet
+from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
 from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = [
@@ -668,7 +668,13 @@ class LinescanModel(SensorModelBase):
         if look.cols != cols:
             raise _fail("LinescanModel.look", f"look-direction table has {look.cols} detectors, "
                                               f"the image has {cols} columns")
-        h0, h1 = (float(v) for v in height_range)
+        try:
+            if isinstance(height_range, (str, bytes)):
+                raise TypeError
+            h0, h1 = (float(v) for v in height_range)
+        except (TypeError, ValueError):
+            raise _fail("LinescanModel.height_range", f"must be two heights (h_min, h_max) in "
+                                                      f"metres, got {height_range!r}") from None
         if not (np.isfinite(h0) and np.isfinite(h1) and h0 < h1):
             raise _fail("LinescanModel.height_range", f"must be finite with h_min < h_max, got "
                                                       f"{(h0, h1)}")
@@ -684,14 +690,8 @@ class LinescanModel(SensorModelBase):
         if not np.all(np.isfinite(parameters.values)):
             raise _fail("LinescanModel.parameters", "values must be finite")
         if location_accuracy_m is not None:
-            try:
-                accuracy = float(location_accuracy_m)
-            except (TypeError, ValueError):
-                accuracy = float("nan")
-            if not (np.isfinite(accuracy) and accuracy > 0):
-                raise _fail("LinescanModel.location_accuracy_m",
-                            f"must be finite and > 0 (or None), got {location_accuracy_m!r}")
-            location_accuracy_m = accuracy
+            location_accuracy_m = location_accuracy(
+                location_accuracy_m, "LinescanModel.location_accuracy_m (or None)")
         self._shape = (rows, cols)
         self._ephemeris = ephemeris
         self._attitude = attitude
@@ -807,16 +807,8 @@ class LinescanModel(SensorModelBase):
             params = ParameterSet(PARAMETER_NAMES, self._full, PARAMETER_UNITS)
         elif name == "dg":
             self._parameter_set_request(name, options, ("accuracy_m",))
-            accuracy = options.get("accuracy_m")
-            if accuracy is None:
-                accuracy = self._location_accuracy_m
-            if accuracy is None:
-                raise ParameterSetError(
-                    f"{type(self).__qualname__} {self.name!r}: parameter set 'dg' derives its "
-                    "a-priori sigmas from the product's location accuracy, which this model "
-                    "does not know (location_accuracy_m is None): pass accuracy_m= (1 sigma, "
-                    "metres)"
-                )
+            accuracy = accuracy_or_stored(options.get("accuracy_m"), self._location_accuracy_m,
+                                          f"{type(self).__qualname__} {self.name!r}", "dg")
             params = dg_parameters(self, accuracy).with_values(self._full)
         else:
             return super().with_parameter_set(name, **options)
@@ -1228,12 +1220,7 @@ def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
     ParameterSetError
         ``accuracy_m`` is not a number > 0 (a ``ValueError``).
     """
-    try:
-        sigma = float(accuracy_m)
-    except (TypeError, ValueError):
-        sigma = float("nan")
-    if not (np.isfinite(sigma) and sigma > 0):
-        raise ParameterSetError(f"accuracy_m must be finite and > 0, got {accuracy_m!r}")
+    sigma = location_accuracy(accuracy_m, "dg_parameters: accuracy_m", ParameterSetError)
     rows, cols = model.shape
     free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
     half_t = 0.5 * rows * model.line_times.line_period_s

@@ -8,10 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from geoblock.errors import SerializationError
+from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["ParameterSet"]
+__all__ = ["ParameterSet", "accuracy_or_stored", "location_accuracy"]
 
 
 def _frozen(a: ArrayLike, dtype=np.float64) -> np.ndarray:
@@ -205,3 +205,74 @@ class ParameterSet:
             for n, v, u in zip(self.names, self.values, self.units, strict=True)
         )
         return f"ParameterSet({body})"
+
+
+# ------------------------------------------------------------------ location accuracy
+def location_accuracy(
+    value: Any, where: str, error: type[Exception] = ModelFormatError
+) -> float:
+    """``value`` as a location accuracy (1 sigma, metres): a finite number > 0.
+
+    Parameters
+    ----------
+    value : Any
+        Anything ``float()`` accepts.
+    where : str
+        What the value is (``"LinescanModel.location_accuracy_m"``); starts the message.
+    error : type of Exception
+        Raised otherwise (default :class:`~geoblock.errors.ModelFormatError`; a
+        :class:`~geoblock.errors.ParameterSetError` when a parameter set asks for it).
+
+    Raises
+    ------
+    error
+        ``"{where}: must be finite and > 0 metres, got {value!r}"``.
+    """
+    try:
+        accuracy = float(value)
+    except (TypeError, ValueError):
+        accuracy = float("nan")
+    if not (np.isfinite(accuracy) and accuracy > 0):
+        raise error(f"{where}: must be finite and > 0 metres, got {value!r}")
+    return accuracy
+
+
+def accuracy_or_stored(
+    given: Any, stored: float | None, model: str, set_name: str,
+    advice: str = "accuracy_m= (1 sigma, metres)",
+) -> float:
+    """The accuracy a parameter set derives its sigmas from: ``given`` (an ``accuracy_m``
+    option) unless None, else the model's ``stored`` ``location_accuracy_m``.
+
+    Parameters
+    ----------
+    given : Any
+        The option's value, or None.
+    stored : float or None
+        The model's ``location_accuracy_m``.
+    model : str
+        The model, as messages name it (``"LinescanModel 'linescan'"``).
+    set_name : str
+        The parameter set asked for (``"dg"``).
+    advice : str
+        What to pass instead, ending the message of the missing-accuracy error.
+
+    Returns
+    -------
+    float
+        Validated by :func:`location_accuracy`.
+
+    Raises
+    ------
+    ParameterSetError
+        Both are None, or the accuracy is not finite and > 0.
+    """
+    accuracy = stored if given is None else given
+    if accuracy is None:
+        raise ParameterSetError(
+            f"{model}: parameter set {set_name!r} derives its a-priori sigmas from the "
+            "product's location accuracy, which this model does not know (location_accuracy_m "
+            f"is None): pass {advice}"
+        )
+    return location_accuracy(accuracy, f"{model}, parameter set {set_name!r}: accuracy_m",
+                             ParameterSetError)

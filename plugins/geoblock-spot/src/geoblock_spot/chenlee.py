@@ -58,7 +58,7 @@ from geoblock import coords
 from geoblock._array import broadcast_float64
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models import SensorModelBase
-from geoblock.models.parameters import ParameterSet
+from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
 from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = [
@@ -403,14 +403,8 @@ class ChenLeeModel(SensorModelBase):
             raise ModelFormatError(
                 f"ChenLeeModel: height_range must be finite (min, max), got {height_range!r}")
         if location_accuracy_m is not None:
-            try:
-                location_accuracy_m = float(location_accuracy_m)
-            except (TypeError, ValueError):
-                location_accuracy_m = math.nan
-            if not (math.isfinite(location_accuracy_m) and location_accuracy_m > 0):
-                raise ModelFormatError(
-                    "ChenLeeModel: location_accuracy_m must be finite and > 0 (or None), got "
-                    f"{location_accuracy_m!r}")
+            location_accuracy_m = location_accuracy(
+                location_accuracy_m, "ChenLeeModel: location_accuracy_m (or None)")
         if parameter_set not in PARAMETER_SETS:
             raise ModelFormatError(
                 f"ChenLeeModel: parameter_set must be one of {PARAMETER_SETS}, "
@@ -559,10 +553,7 @@ class ChenLeeModel(SensorModelBase):
         ndarray, (19,)
             In the units of :data:`COEFFICIENT_UNITS`.
         """
-        s = float(location_accuracy_m)
-        if not (math.isfinite(s) and s > 0):
-            raise ModelFormatError(
-                f"mba_sigmas: location_accuracy_m must be > 0, got {location_accuracy_m!r}")
+        s = location_accuracy(location_accuracy_m, "mba_sigmas: location_accuracy_m")
         rows, cols = self._shape
         t_mid = 0.5 * (rows - 1) * self._interior.line_period_s
         centre = self._backproject_work(np.array([(rows - 1) / 2.0]), np.array([(cols - 1) / 2.0]),
@@ -626,13 +617,9 @@ class ChenLeeModel(SensorModelBase):
             raise ParameterSetError(
                 f"ChenLeeModel: give accuracy_m or sigmas, not both (parameter set {name!r})")
         if name == "mba" and accuracy is None and sigmas is None:
-            accuracy = self._location_accuracy_m
-            if accuracy is None:
-                raise ParameterSetError(
-                    "ChenLeeModel 'spot-chenlee': parameter set 'mba' derives its a-priori "
-                    "sigmas from the product's location accuracy, which this model does not "
-                    "know (location_accuracy_m is None): pass accuracy_m= (1 sigma, metres, "
-                    "e.g. SPOT_LOCATION_ACCURACY_M) or sigmas=")
+            accuracy = accuracy_or_stored(
+                None, self._location_accuracy_m, "ChenLeeModel 'spot-chenlee'", name,
+                advice="accuracy_m= (1 sigma, metres, e.g. SPOT_LOCATION_ACCURACY_M) or sigmas=")
         if accuracy is not None:
             try:
                 sigmas = self.mba_sigmas(accuracy)

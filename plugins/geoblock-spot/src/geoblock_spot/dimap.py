@@ -66,14 +66,15 @@ from __future__ import annotations
 import os
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from geoblock.errors import GeoblockIOError, ModelFormatError
+from geoblock.errors import GeoblockError, GeoblockIOError, ModelFormatError, ParameterSetError
+from geoblock.models.parameters import ParameterSet
 
 __all__ = [
     "DimapFormatError",
@@ -92,11 +93,13 @@ EARTH_ROTATION_RAD_S = 7.2921151467e-5
 _VELOCITY_TOLERANCE_M_S = 5.0
 
 # ---- physical plausibility of the fields a model is built from (issue 12, item 3); shared
-# with :mod:`geoblock_spot.dimap2`
+# with :mod:`geoblock_spot.dimap2` (the ``check_*`` functions below). The orbit bounds are
+# tighter than core's (:data:`geoblock.models.linescan.ORBIT_RADIUS_M`, ``MAX_SPEED_M_S``, any
+# Earth-orbiting platform) and are checked when the file is read, before any model is built.
 #: satellite distance from the Earth's centre, metres (SPOT 1-7 and Pleiades fly at 690-830 km)
-ORBIT_RADIUS_M = (6.5e6, 8.5e6)
+SPOT_ORBIT_RADIUS_M = (6.5e6, 8.5e6)
 #: satellite speed, m/s (about 7.4-7.5 km/s, inertial or Earth-fixed)
-MAX_SPEED_M_S = 1.0e4
+SPOT_MAX_SPEED_M_S = 1.0e4
 #: image rows and columns (a SPOT 5 HRS segment has ~1e5 rows)
 MAX_IMAGE_SIZE = 10_000_000
 #: line period, seconds (SPOT 1-4: 1.5 ms, SPOT 5: 0.75 ms, Pleiades: 74 us)
@@ -139,14 +142,132 @@ class DimapFormatError(ModelFormatError):
 
 @contextmanager
 def file_named(path: str | os.PathLike[str], field: str) -> Iterator[None]:
-    """Re-raise a :class:`ModelFormatError` of the core model classes (which cannot know the
-    file) as a :class:`DimapFormatError` naming ``path`` and the DIMAP ``field``."""
+    """Re-raise a :class:`~geoblock.errors.GeoblockError` of the core model classes (which
+    cannot know the file) naming ``path`` and the DIMAP ``field``.
+
+    A :class:`ModelFormatError` becomes a :class:`DimapFormatError`; any other
+    ``GeoblockError`` (``ParameterSetError`` ...) keeps its class, with the message
+    ``"'path': DIMAP field field: message"`` and ``path`` / ``field`` attributes set (if the
+    class cannot be built from a message alone, a ``DimapFormatError`` is raised instead). An
+    error that already names ``path`` (a ``DimapFormatError``, or one re-raised by an inner
+    ``file_named``) passes unchanged.
+    """
     try:
         yield
-    except DimapFormatError:
-        raise
-    except ModelFormatError as exc:
-        raise DimapFormatError(path, field, str(exc)) from None
+    except GeoblockError as exc:
+        if isinstance(exc, DimapFormatError) or getattr(exc, "path", None) == str(path):
+            raise
+        if isinstance(exc, ModelFormatError):
+            raise DimapFormatError(path, field, str(exc)) from None
+        try:
+            named = type(exc)(f"{str(path)!r}: DIMAP field {field}: {exc}")
+            named.path, named.field = str(path), field
+        except Exception:  # a class whose constructor needs more than a message
+            raise DimapFormatError(path, field, f"{type(exc).__name__}: {exc}") from exc
+        raise named from None
+
+
+def with_parameters(model, parameters: str | ParameterSet, path: str | os.PathLike[str],
+                    names: tuple[str, ...]):
+    """``model`` (a :class:`~geoblock.models.linescan.LinescanModel`) with the parameters a
+    reader's ``parameters`` option asks for: a ``ParameterSet`` (replaces the model's) or one
+    of the parameter-set ``names`` (``model.with_parameter_set(name)``).
+
+    Raises
+    ------
+    ParameterSetError
+        Any other ``parameters``, or a set the model cannot give (``"dg"`` without an
+        accuracy); the message names ``path``.
+    DimapFormatError
+        The model refuses the ``ParameterSet``.
+    """
+    with file_named(path, "(model)"):
+        if isinstance(parameters, ParameterSet):
+            return model.replace(parameters=parameters)
+        if isinstance(parameters, str) and parameters in names:
+            return model.with_parameter_set(parameters)
+    known = ", ".join(repr(n) for n in names[:-1]) + f" or {names[-1]!r}" if len(names) > 1 \
+        else repr(names[0])
+    raise ParameterSetError(f"{str(path)!r}: parameters must be {known}, or a ParameterSet, "
+                            f"got {parameters!r}")
+
+
+# ---------------------------------------------------------------------- plausibility checks
+def _sample(field: str, i: int) -> tuple[str, str]:
+    """The field of sample ``i`` (``field`` may hold ``{i}``, the 0-based index) and, when it
+    does not, a ``"point i+1 "`` to name the sample in the message."""
+    return (field.format(i=i), "") if "{i}" in field else (field, f"point {i + 1} ")
+
+
+def check_orbit_radius(path: str | os.PathLike[str], field: str, position_m: np.ndarray
+                       ) -> None:
+    """Refuse ECEF positions (n, 3) outside :data:`SPOT_ORBIT_RADIUS_M` of the Earth's centre."""
+    radius = np.linalg.norm(position_m, axis=1)
+    lo, hi = SPOT_ORBIT_RADIUS_M
+    bad = np.flatnonzero(~((radius >= lo) & (radius <= hi)))
+    if bad.size:
+        where, point = _sample(field, int(bad[0]))
+        raise DimapFormatError(path, where,
+                               f"{point}is {radius[bad[0]] / 1000:.6g} km from the Earth's "
+                               f"centre: not a satellite orbit (radius outside "
+                               f"{lo / 1000:g}-{hi / 1000:g} km)")
+
+
+def check_speed(path: str | os.PathLike[str], field: str, velocity_m_s: np.ndarray) -> None:
+    """Refuse velocities (n, 3) of :data:`SPOT_MAX_SPEED_M_S` or more (or NaN)."""
+    speed = np.linalg.norm(velocity_m_s, axis=1)
+    bad = np.flatnonzero(~(speed < SPOT_MAX_SPEED_M_S))
+    if bad.size:
+        where, point = _sample(field, int(bad[0]))
+        raise DimapFormatError(path, where,
+                               f"{point}moves at {speed[bad[0]]:.6g} m/s: not a satellite "
+                               f"velocity (speed must be < {SPOT_MAX_SPEED_M_S:g} m/s)")
+
+
+def check_unit_quaternions(path: str | os.PathLike[str], field: str, q: np.ndarray,
+                           label: Callable[[int], str] | None = None) -> None:
+    """Refuse quaternions (n, 4) whose norm is off 1 by more than
+    :data:`QUATERNION_NORM_TOLERANCE` (or NaN). ``label(i)`` starts the message about sample
+    ``i`` (default: ``"quaternion i+1 "`` unless ``field`` names the sample)."""
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
+    if bad.size:
+        i = int(bad[0])
+        where, point = _sample(field, i)
+        start = label(i) if label is not None else (f"quaternion {i + 1} " if point else "")
+        raise DimapFormatError(path, where,
+                               f"{start}has norm {norm[i]:.6g}: not a unit quaternion "
+                               f"(tolerance {QUATERNION_NORM_TOLERANCE:g})")
+
+
+def parse_time(path: str | os.PathLike[str], field: str, text: str) -> np.datetime64:
+    """``text`` (ISO-8601 UTC, optional ``Z``) as a ``datetime64[us]``, refused unless its
+    year is within :data:`YEAR_RANGE` (parsed in microseconds: nanoseconds overflow silently
+    outside 1678-2262)."""
+    try:
+        value = np.datetime64(text.rstrip("Z"), "us")
+    except (ValueError, OverflowError):
+        raise DimapFormatError(path, field, f"{text!r} is not an ISO-8601 time") from None
+    if not YEAR_RANGE[0] <= value.astype("datetime64[Y]").astype(int) + 1970 <= YEAR_RANGE[1]:
+        raise DimapFormatError(path, field, f"{text!r} is not a plausible acquisition time "
+                                            f"(years {YEAR_RANGE[0]}-{YEAR_RANGE[1]})")
+    return value
+
+
+#: ``|value|`` limits of a stated ground point's fields
+GROUND_POINT_LIMITS = {"lon": 360.0, "lat": 90.0, "h": 1e5, "row": MAX_IMAGE_SIZE,
+                       "col": MAX_IMAGE_SIZE}
+
+
+def check_ground_value(path: str | os.PathLike[str], field: str, kind: str, value: float
+                       ) -> float:
+    """Refuse a ground point's ``kind`` (``lon``, ``lat``, ``h``, ``row``, ``col``) value
+    beyond :data:`GROUND_POINT_LIMITS`; returns ``value``."""
+    limit = GROUND_POINT_LIMITS[kind]
+    if not abs(value) <= limit:
+        raise DimapFormatError(path, field, f"{value!r} is not plausible (|value| must be <= "
+                                            f"{limit:g})")
+    return value
 
 
 @dataclass(frozen=True)
@@ -549,15 +670,7 @@ class _Doc:
         return int(value)
 
     def time(self, elem: ET.Element, sub: str, field: str) -> np.datetime64:
-        text = self.text(elem, sub, field)
-        try:
-            value = np.datetime64(text.rstrip("Z"), "us")
-        except (ValueError, OverflowError):
-            raise self.error(field, f"{text!r} is not an ISO-8601 time") from None
-        if not YEAR_RANGE[0] <= value.astype("datetime64[Y]").astype(int) + 1970 <= YEAR_RANGE[1]:
-            raise self.error(field, f"{text!r} is not a plausible acquisition time (years "
-                             f"{YEAR_RANGE[0]}-{YEAR_RANGE[1]})")
-        return value
+        return parse_time(self.path, field, self.text(elem, sub, field))
 
     def all(self, sub: str, field: str, minimum: int) -> list[ET.Element]:
         found = self.root.findall(sub)
@@ -703,19 +816,8 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     doc.increasing(eph_t, _EPHEMERIS + "/TIME")
     pos = doc.vectors(points, "Location", _EPHEMERIS)
     vel = doc.vectors(points, "Velocity", _EPHEMERIS)
-    radius = np.linalg.norm(pos, axis=1)
-    bad = np.flatnonzero(~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1])))
-    if bad.size:
-        raise doc.error(_EPHEMERIS + "/Location",
-                        f"point {bad[0] + 1} is {radius[bad[0]] / 1000:.6g} km from the Earth's "
-                        f"centre: not a satellite orbit (radius outside "
-                        f"{ORBIT_RADIUS_M[0] / 1000:g}-{ORBIT_RADIUS_M[1] / 1000:g} km)")
-    speed = np.linalg.norm(vel, axis=1)
-    bad = np.flatnonzero(~(speed < MAX_SPEED_M_S))
-    if bad.size:
-        raise doc.error(_EPHEMERIS + "/Velocity",
-                        f"point {bad[0] + 1} moves at {speed[bad[0]]:.6g} m/s: not a satellite "
-                        f"velocity (speed must be < {MAX_SPEED_M_S:g} m/s)")
+    check_orbit_radius(file, _EPHEMERIS + "/Location", pos)
+    check_speed(file, _EPHEMERIS + "/Velocity", vel)
     derivative = _position_derivative(eph_t, pos)
     err_fixed = np.abs(derivative - vel).max()
     err_inertial = np.abs(derivative - (vel - _omega_cross(pos))).max()
@@ -764,12 +866,7 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
     q = np.array([[doc.float(e, f"Q{k}", f"{_QUATERNIONS}/Q{k}") for k in range(4)]
                   for e in quats]).reshape(-1, 4)
     doc.increasing(q_t, _QUATERNIONS + "/Q_TIME")
-    norm = np.linalg.norm(q, axis=1)
-    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
-    if bad.size:
-        raise doc.error(_QUATERNIONS + "/Q0..Q3",
-                        f"quaternion {bad[0] + 1} has norm {norm[bad[0]]:.6g}: not a unit "
-                        f"quaternion (tolerance {QUATERNION_NORM_TOLERANCE:g})")
+    check_unit_quaternions(file, _QUATERNIONS + "/Q0..Q3", q)
     star = doc.opt_text(_ATTITUDES + "/Corrected_Attitudes/STAR_TRACKER_USED")
 
     # ---- look angles (first band's table)
@@ -796,13 +893,9 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
                      ) -> GroundPoint:
         lon, lat, h, row, col = (
             0.0 if tag is None or (k == 2 and e.find(tag) is None)
-            else doc.float(e, tag, f"{field}/{tag}") for k, tag in enumerate(tags))
-        for tag, value, limit in zip(tags, (lon, lat, h, row, col),
-                                     (360.0, 90.0, 1e5, MAX_IMAGE_SIZE, MAX_IMAGE_SIZE),
-                                     strict=True):
-            if tag is not None and not abs(value) <= limit:
-                raise doc.error(f"{field}/{tag}", f"{value!r} is not plausible (|value| must "
-                                f"be <= {limit:g})")
+            else check_ground_value(file, f"{field}/{tag}", kind,
+                                    doc.float(e, tag, f"{field}/{tag}"))
+            for k, (tag, kind) in enumerate(zip(tags, GROUND_POINT_LIMITS, strict=True)))
         return GroundPoint(lon=lon, lat=lat, h=h, row=row - offset, col=col - offset)
 
     def frame_point(e: ET.Element, field: str) -> GroundPoint:

@@ -76,7 +76,9 @@ within 0.02 px over the whole image.
 
 from __future__ import annotations
 
+import numbers
 import os
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -84,7 +86,6 @@ from pathlib import Path
 import numpy as np
 
 from geoblock import coords
-from geoblock.errors import ParameterSetError
 from geoblock.models.linescan import (
     Attitude,
     Ephemeris,
@@ -94,19 +95,21 @@ from geoblock.models.linescan import (
     matrix_to_quaternion,
     quaternion_to_matrix,
 )
-from geoblock.models.parameters import ParameterSet
+from geoblock.models.parameters import ParameterSet, location_accuracy
 from geoblock_spot.dimap import (
     EARTH_ROTATION_RAD_S,
     MAX_IMAGE_SIZE,
     MAX_LINE_PERIOD_S,
     MAX_LOOK_TANGENT,
-    MAX_SPEED_M_S,
-    ORBIT_RADIUS_M,
-    QUATERNION_NORM_TOLERANCE,
-    YEAR_RANGE,
     DimapFormatError,
     GroundPoint,
+    check_ground_value,
+    check_orbit_radius,
+    check_speed,
+    check_unit_quaternions,
     file_named,
+    parse_time,
+    with_parameters,
 )
 
 __all__ = [
@@ -133,6 +136,9 @@ CENTRE_TOLERANCE_M = 20_000.0
 #: line periods; ``END`` is rounded to milliseconds in the internal format)
 _DURATION_TOLERANCE = 0.01
 
+#: largest ``attitude_step_s`` accepted, seconds
+MAX_ATTITUDE_STEP_S = 10.0
+
 _LINE_PERIOD_UNITS = {"microsecond": 1e-6, "us": 1e-6, "millisecond": 1e-3, "ms": 1e-3,
                       "second": 1.0, "s": 1.0}
 
@@ -157,11 +163,15 @@ class QuaternionPolynomial:
     offset_s: float
     scale_s: float
 
+    def raw(self, t_s: np.ndarray) -> np.ndarray:
+        """The polynomials' values (n, 4) ``(w, x, y, z)`` at times (n,), not normalised."""
+        tau = (np.asarray(t_s, np.float64) - self.offset_s) / self.scale_s
+        return np.stack([np.polynomial.polynomial.polyval(tau, c) for c in self.coefficients],
+                        axis=-1)
+
     def at(self, t_s: np.ndarray) -> np.ndarray:
         """Unit quaternions (n, 4) ``(w, x, y, z)`` at times (n,), normalised."""
-        tau = (np.asarray(t_s, np.float64) - self.offset_s) / self.scale_s
-        q = np.stack([np.polynomial.polynomial.polyval(tau, c) for c in self.coefficients],
-                     axis=-1)
+        q = self.raw(t_s)
         return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
@@ -240,9 +250,8 @@ class Dimap2:
     def look_tangents(self, cols: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(psi_x, psi_y)`` (cols,) look-angle tangents of image columns ``0 .. cols-1``."""
         n = self.shape[1] if cols is None else int(cols)
-        d = np.arange(n, dtype=np.float64) + (self.first_detector - 1)
-        poly = np.polynomial.polynomial.polyval
-        return poly(d, self.psi_x_coefficients), poly(d, self.psi_y_coefficients)
+        return (_look_tangents(self.psi_x_coefficients, self.first_detector, n),
+                _look_tangents(self.psi_y_coefficients, self.first_detector, n))
 
     def __repr__(self) -> str:
         return (f"Dimap2({self.mission}, {self.format}, shape={self.shape}, epoch={self.epoch}, "
@@ -367,20 +376,15 @@ class _Doc:
         return v
 
     def time(self, where: str, base: ET.Element | None = None, label: str = "") -> np.datetime64:
+        """A ``datetime64[ns]``: parsed (and its year checked) in microseconds, which do not
+        overflow, plus the string's digits below the microsecond (the internal Pleiades
+        format has seven)."""
         s = self.text(where, base, label)
-        try:
-            # microseconds first: nanoseconds overflow silently outside 1678-2262
-            year = np.datetime64(s.rstrip("Z"), "us").astype("datetime64[Y]").astype(int) + 1970
-            if not YEAR_RANGE[0] <= year <= YEAR_RANGE[1]:
-                raise DimapFormatError(self.path, label + where,
-                                       f"not a plausible acquisition time (years "
-                                       f"{YEAR_RANGE[0]}-{YEAR_RANGE[1]}): {s!r}")
-            return np.datetime64(s.rstrip("Z"), "ns")
-        except (ValueError, OverflowError) as exc:
-            if isinstance(exc, DimapFormatError):
-                raise
-            raise DimapFormatError(self.path, label + where,
-                                   f"not an ISO-8601 UTC time: {s!r}") from None
+        value = parse_time(self.path, label + where, s).astype("datetime64[ns]")
+        below_us = _BELOW_MICROSECOND.search(s)
+        if below_us:
+            value += np.timedelta64(int(below_us.group(1)[:3].ljust(3, "0")), "ns")
+        return value
 
     def integer(self, where: str, base: ET.Element | None = None, label: str = "",
                 maximum: float = MAX_IMAGE_SIZE, minimum: int = 1) -> int:
@@ -389,6 +393,10 @@ class _Doc:
             raise DimapFormatError(self.path, label + where,
                                    f"must be a whole number from {minimum} to {maximum:g}, got {v}")
         return int(v)
+
+
+#: the fraction-of-second digits after the sixth (numpy truncates them at the microsecond)
+_BELOW_MICROSECOND = re.compile(r"\.\d{6}(\d+)")
 
 
 def _seconds(t: np.datetime64, epoch: np.datetime64) -> float:
@@ -445,19 +453,8 @@ def _ephemeris(doc: _Doc, points: list[ET.Element], field: str, pos_tag: str, ve
             raise DimapFormatError(doc.path, f"{field}/{pos_tag}", f"unit {unit!r}, expected m")
     if np.any(~(np.diff(t) > 0)):
         raise DimapFormatError(doc.path, field, "point times are not strictly increasing")
-    radius = np.linalg.norm(pos, axis=1)
-    bad = np.flatnonzero(~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1])))
-    if bad.size:
-        raise DimapFormatError(doc.path, f"{field}[{bad[0]}]/{pos_tag}",
-                               f"{radius[bad[0]] / 1000:.6g} km from the Earth's centre: not a "
-                               f"satellite orbit (radius outside {ORBIT_RADIUS_M[0] / 1000:g}-"
-                               f"{ORBIT_RADIUS_M[1] / 1000:g} km)")
-    speed = np.linalg.norm(vel, axis=1)
-    bad = np.flatnonzero(~(speed < MAX_SPEED_M_S))
-    if bad.size:
-        raise DimapFormatError(doc.path, f"{field}[{bad[0]}]/{vel_tag}",
-                               f"{speed[bad[0]]:.6g} m/s: not a satellite velocity (speed must "
-                               f"be < {MAX_SPEED_M_S:g} m/s)")
+    check_orbit_radius(doc.path, f"{field}[{{i}}]/{pos_tag}", pos)
+    check_speed(doc.path, f"{field}[{{i}}]/{vel_tag}", vel)
     return t, pos, vel, _velocity_frame(doc, field, t, pos, vel)
 
 
@@ -479,13 +476,9 @@ def _points(doc: _Doc, base: ET.Element | None) -> tuple[tuple[GroundPoint, ...]
         return (), None
 
     def point(e: ET.Element, label: str) -> GroundPoint:
-        values = {}
-        for tag, limit in (("LON", 360.0), ("LAT", 90.0), ("ROW", MAX_IMAGE_SIZE),
-                           ("COL", MAX_IMAGE_SIZE)):
-            values[tag] = doc.number(tag, e, label)
-            if not abs(values[tag]) <= limit:
-                raise DimapFormatError(doc.path, label + tag, f"{values[tag]!r} is not plausible "
-                                                              f"(|value| must be <= {limit:g})")
+        values = {tag: check_ground_value(doc.path, label + tag, tag.lower(),
+                                          doc.number(tag, e, label))
+                  for tag in ("LON", "LAT", "ROW", "COL")}
         return GroundPoint(lon=values["LON"], lat=values["LAT"], h=0.0, row=values["ROW"] - 1.0,
                            col=values["COL"] - 1.0)
 
@@ -550,12 +543,7 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
             i = int(np.flatnonzero(~(np.diff(q_t) > 0))[0]) + 1
             raise DimapFormatError(path, f"{field}[{i}]/TIME",
                                    "quaternion times are not strictly increasing")
-        norm = np.linalg.norm(q, axis=1)
-        bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
-        if bad.size:
-            raise DimapFormatError(path, f"{field}[{bad[0]}]/Q0..Q3",
-                                   f"norm {norm[bad[0]]:.6g}: not a unit quaternion "
-                                   f"(tolerance {QUATERNION_NORM_TOLERANCE:g})")
+        check_unit_quaternions(path, f"{field}[{{i}}]/Q0..Q3", q)
         source = field
     elif poly_node is not None:
         poly = _quaternion_polynomial(doc, poly_node, f"{att}/Polynomial_Quaternions", start)
@@ -656,22 +644,22 @@ def _check_unit(doc: _Doc, field: str, poly: QuaternionPolynomial, rows: int,
     """The attitude polynomials must give unit quaternions over the image's rows."""
     t = np.linspace(-0.5, rows - 0.5, 101) * line_period
     with np.errstate(all="ignore"):
-        tau = (t - poly.offset_s) / poly.scale_s
-        q = np.stack([np.polynomial.polynomial.polyval(tau, c) for c in poly.coefficients], -1)
-        norm = np.linalg.norm(q, axis=-1)
-    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE))
-    if bad.size:
-        raise DimapFormatError(doc.path, f"{field}/Q0..Q3",
-                               f"the polynomials give a quaternion of norm {norm[bad[0]]:.6g} at "
-                               f"{t[bad[0]]:.3f} s after START: not a unit quaternion (tolerance "
-                               f"{QUATERNION_NORM_TOLERANCE:g})")
+        check_unit_quaternions(
+            doc.path, f"{field}/Q0..Q3", poly.raw(t),
+            lambda i: f"the polynomials' quaternion at {t[i]:.3f} s after START ")
+
+
+def _look_tangents(coefficients: np.ndarray, first: int, cols: int) -> np.ndarray:
+    """The look-angle tangent polynomial at image columns ``0 .. cols-1`` (detector index
+    ``col + first - 1``)."""
+    d = np.arange(cols, dtype=np.float64) + (first - 1)
+    return np.polynomial.polynomial.polyval(d, coefficients)
 
 
 def _check_look(doc: _Doc, field: str, coefficients: np.ndarray, first: int, cols: int) -> None:
     """The look-angle tangents of every detector of the image must be finite and small."""
-    d = np.arange(cols, dtype=np.float64) + (first - 1)
     with np.errstate(all="ignore"):
-        tangent = np.polynomial.polynomial.polyval(d, coefficients)
+        tangent = _look_tangents(coefficients, first, cols)
     bad = np.flatnonzero(~(np.abs(tangent) < MAX_LOOK_TANGENT))
     if bad.size:
         raise DimapFormatError(doc.path, field,
@@ -744,18 +732,23 @@ def dimap2_model(
     DimapFormatError
         The ephemeris or attitude does not cover the image's rows, or the model puts the
         product's stated scene centre more than :data:`CENTRE_TOLERANCE_M` away (attitude
-        frame or time convention not understood).
+        frame or time convention not understood); ``accuracy_m`` not finite and > 0,
+        ``attitude_step_s`` not a number in ``(0, MAX_ATTITUDE_STEP_S]``, ``height_range`` not
+        two finite heights ``h_min < h_max`` (field ``(option ...)`` / ``(model)``).
+    ParameterSetError
+        ``parameters`` is none of the above, or ``"dg"`` without ``accuracy_m``; the message
+        names the file.
     """
-    meta = source if isinstance(source, Dimap2) else read_dimap2(source)
+    path = source.path if isinstance(source, Dimap2) else Path(source)
     if accuracy_m is not None:
-        try:
-            accuracy = float(accuracy_m)
-        except (TypeError, ValueError):
-            accuracy = float("nan")
-        if not (np.isfinite(accuracy) and accuracy > 0):
-            raise DimapFormatError(meta.path, "(option accuracy_m)",
-                                   f"the location accuracy must be finite and > 0 metres, got "
-                                   f"{accuracy_m!r}")
+        with file_named(path, "(option accuracy_m)"):
+            location_accuracy(accuracy_m, "the location accuracy")
+    if (isinstance(attitude_step_s, bool) or not isinstance(attitude_step_s, numbers.Real)
+            or not 0 < attitude_step_s <= MAX_ATTITUDE_STEP_S):
+        raise DimapFormatError(path, "(option attitude_step_s)",
+                               f"must be a sampling step > 0 and <= {MAX_ATTITUDE_STEP_S:g} s, "
+                               f"got {attitude_step_s!r}")
+    meta = source if isinstance(source, Dimap2) else read_dimap2(source)
     rows, cols = meta.shape
     psi_x, psi_y = meta.look_tangents(cols)
     with file_named(meta.path, "Polynomial_Look_Angles"):
@@ -809,18 +802,7 @@ def dimap2_model(
                               location_accuracy_m=accuracy_m)
     if meta.centre is not None:
         _check_centre(meta, model)
-    if isinstance(parameters, ParameterSet):
-        with file_named(meta.path, "(model)"):
-            return model.replace(parameters=parameters)
-    if parameters == "linescan":
-        return model
-    if parameters == "dg":
-        if accuracy_m is None:
-            raise ParameterSetError(f"{str(meta.path)!r}: parameters='dg' needs accuracy_m (the "
-                                    "product's location accuracy, 1 sigma, metres)")
-        return model.with_parameter_set("dg")
-    raise ParameterSetError(f"{str(meta.path)!r}: parameters must be 'linescan', 'dg' or a "
-                            f"ParameterSet, got {parameters!r}")
+    return with_parameters(model, parameters, meta.path, ("linescan", "dg"))
 
 
 def _extend_table(t: np.ndarray, q: np.ndarray, lo: float, hi: float,

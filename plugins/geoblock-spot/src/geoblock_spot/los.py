@@ -55,7 +55,6 @@ from typing import Any
 import numpy as np
 
 from geoblock import coords
-from geoblock.errors import ParameterSetError
 from geoblock.models.linescan import (
     DG_ADJUSTABLE,
     Attitude,
@@ -76,6 +75,7 @@ from geoblock_spot.dimap import (
     SpotDimap,
     file_named,
     read_dimap,
+    with_parameters,
 )
 
 __all__ = [
@@ -215,12 +215,7 @@ def spot_dimap_model(
         model = LinescanModel((rows, cols), ephemeris, attitude, look, line_times,
                               epoch=dimap.epoch, height_range=height_range,
                               location_accuracy_m=dimap.location_accuracy_m)
-        if isinstance(parameters, ParameterSet):
-            return model.replace(parameters=parameters)
-        if parameters in ("dg", "linescan"):
-            return model.with_parameter_set(parameters)
-    raise ParameterSetError(f"{str(dimap.path)!r}: parameters must be 'dg', 'linescan' or a "
-                            f"ParameterSet, got {parameters!r}")
+    return with_parameters(model, parameters, dimap.path, ("dg", "linescan"))
 
 
 @dataclass(frozen=True, eq=False)

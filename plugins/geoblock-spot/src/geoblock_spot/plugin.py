@@ -59,38 +59,25 @@ def geoblock_read_sensor_model(path, model_name, options):
 
 
 def _check_options(path, options) -> None:
-    """Refuse option values of the wrong type or impossible ones, naming the file and option
-    (the readers would otherwise fail with a bare ``TypeError`` / ``ZeroDivisionError``)."""
-    import math
-
+    """Refuse option values of a wrong type that the readers would take, naming the file and
+    option: a ``use_attitude`` that is not a bool (any value is truthy or not), and a bool or
+    string for ``accuracy_m`` or a height (``float()`` accepts them). Everything else is
+    checked where it is used: ``parameters`` by :func:`geoblock_spot.dimap.with_parameters`,
+    ``accuracy_m`` and ``attitude_step_s`` by :func:`geoblock_spot.dimap2.dimap2_model`,
+    ``height_range`` by :class:`geoblock.models.linescan.LinescanModel`."""
     from geoblock.errors import ModelFormatError
-    from geoblock.models.parameters import ParameterSet
 
     def fail(name: str, what: str) -> ModelFormatError:
         return ModelFormatError(f"{str(path)!r}: option {name} must be {what}, got "
                                 f"{options[name]!r}")
 
-    def number(name: str, value) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise fail(name, "a number")
-        return float(value)
+    def number(value) -> bool:
+        return not isinstance(value, (bool, str, bytes))
 
-    if "parameters" in options and not isinstance(options["parameters"], (str, ParameterSet)):
-        raise fail("parameters", "a parameter-set name or a ParameterSet")
     if "use_attitude" in options and not isinstance(options["use_attitude"], bool):
         raise fail("use_attitude", "true or false")
-    if "height_range" in options:
-        value = options["height_range"]
-        if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
-            raise fail("height_range", "two heights (h_min, h_max) in metres")
-        lo, hi = (number("height_range", v) for v in value)
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-            raise fail("height_range", "finite with h_min < h_max")
-    if options.get("accuracy_m") is not None:
-        value = number("accuracy_m", options["accuracy_m"])
-        if not (math.isfinite(value) and value > 0):
-            raise fail("accuracy_m", "a finite location accuracy > 0 metres")
-    if "attitude_step_s" in options:
-        value = number("attitude_step_s", options["attitude_step_s"])
-        if not (math.isfinite(value) and 0 < value <= 10.0):
-            raise fail("attitude_step_s", "a sampling step > 0 and <= 10 s")
+    if options.get("accuracy_m") is not None and not number(options["accuracy_m"]):
+        raise fail("accuracy_m", "a number")
+    heights = options.get("height_range")
+    if isinstance(heights, (list, tuple)) and not all(number(h) for h in heights):
+        raise fail("height_range", "two heights (h_min, h_max) in metres")
