@@ -22,6 +22,7 @@ __all__ = [
     "GeoblockIOError",
     "GeoblockWarning",
     "GridError",
+    "MetadataFieldError",
     "ModelFormatError",
     "NoIntersectionWarning",
     "ObservationError",
@@ -82,6 +83,28 @@ class UnsupportedFormatError(GeoblockError, ValueError):
 
 class ModelFormatError(GeoblockError, ValueError):
     """A reader recognised a file but its content is invalid (names the file and field)."""
+
+
+class MetadataFieldError(ModelFormatError):
+    """A metadata field is missing, empty, not a number, out of range or unknown.
+
+    Raised by :mod:`geoblock.io.metadata`'s readers (plugins pass their own subclass).
+
+    Attributes
+    ----------
+    source : str
+        The file (or label) read.
+    field : str
+        The field at fault (an XML element path or a table key such as ``images[2].seed``).
+    problem : str
+        What is wrong with it.
+    """
+
+    def __init__(self, source: str, field: str, problem: str):
+        super().__init__(f"{source}: {field}: {problem}")
+        self.source = str(source)
+        self.field = field
+        self.problem = problem
 
 
 class SerializationError(GeoblockError, ValueError):

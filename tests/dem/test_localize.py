@@ -55,7 +55,7 @@ class LineCamera(SensorModelBase):
             self.y0 - GSD * np.asarray(row),
         )
 
-    def _image_to_ground(self, row, col, h):
+    def image_to_ground(self, row, col, h):
         x, y = self.xy(row, col, h)
         lon, lat = geoblock.coords.transformer(TMERC, "EPSG:4326").transform(x, y)
         return np.asarray(lon), np.asarray(lat)

@@ -20,8 +20,8 @@ class Domained(AffineCamera):
 
     name = "test-domained"
 
-    def _ground_to_image(self, lon, lat, h):
-        row, col = super()._ground_to_image(lon, lat, h)
+    def ground_to_image(self, lon, lat, h):
+        row, col = super().ground_to_image(lon, lat, h)
         status = np.where(lon < 7.06, Status.CONVERGED, Status.OUT_OF_DOMAIN)
         return row, col, status
 
@@ -82,7 +82,7 @@ def test_shapes(synthetic_model):
 
 
 def test_subclass_without_a_direction_is_refused():
-    with pytest.raises(TypeError, match="must implement _ground_to_image or _image_to_ground"):
+    with pytest.raises(TypeError, match="must implement ground_to_image or image_to_ground"):
         class Nothing(AffineCamera.__mro__[1]):  # SensorModelBase
             name = "nothing"
             shape = (1, 1)
@@ -104,11 +104,29 @@ def test_forward_only_model_without_seed_says_what_to_do():
     class NoSeed(AffineCamera):
         name = "test-noseed"
 
-        def _ground_seed(self):
-            return super(AffineCamera, self)._ground_seed()
+        def ground_seed(self):
+            return super(AffineCamera, self).ground_seed()
 
-    with pytest.raises(GeoblockError, match=r"override _ground_seed"):
+    with pytest.raises(GeoblockError, match=r"override ground_seed"):
         NoSeed.example().backproject(0.0, 0.0, 0.0)
+
+
+def test_kernels_under_their_old_private_names_still_work_with_a_deprecation_warning():
+    """A plugin written against geoblock 0.1 (``_ground_to_image``) keeps working, warned."""
+    with pytest.warns(DeprecationWarning, match=r"OldNames\._ground_to_image is deprecated"):
+
+        class OldNames(AffineCamera):
+            name = "test-oldnames"
+
+            def _ground_to_image(self, lon, lat, h):
+                row, col = AffineCamera.ground_to_image(self, lon, lat, h)[:2]
+                return row + 1.0, col
+
+    new = AffineCamera.example()
+    old = OldNames.from_dict({**new.to_dict(), "model": "test-oldnames"})
+    r0, c0 = new.project(2.0, 45.0, 100.0)
+    r1, c1 = old.project(2.0, 45.0, 100.0)
+    assert r1 == pytest.approx(r0 + 1.0) and c1 == pytest.approx(c0)
 
 
 def test_los_and_footprint(synthetic_model):
@@ -180,9 +198,9 @@ def test_chunk_points_bounds_kernel_calls_and_changes_no_result():
         chunk_points = 7
         sizes: list = []
 
-        def _image_to_ground(self, row, col, h):
+        def image_to_ground(self, row, col, h):
             Chunked.sizes.append(row.shape[0])
-            return super()._image_to_ground(row, col, h)
+            return super().image_to_ground(row, col, h)
 
     whole = ConstantVelocityPushbroom.example()
     chunked = Chunked(*[getattr(whole, "_" + k) for k in ("shape", "origin", "position",

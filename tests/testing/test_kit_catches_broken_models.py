@@ -160,8 +160,8 @@ class HalfPixelPushbroom(ConstantVelocityPushbroom):
 
     name: ClassVar[str] = "broken-half-pixel"
 
-    def _ground_to_image(self, lon, lat, h):
-        row, col, status = super()._ground_to_image(lon, lat, h)
+    def ground_to_image(self, lon, lat, h):
+        row, col, status = super().ground_to_image(lon, lat, h)
         return row + 0.5, col + 0.5, status
 
 
@@ -171,7 +171,7 @@ class SloppyInverse(AffineCamera):
     name: ClassVar[str] = "broken-sloppy-inverse"
     newton_tolerance_px: ClassVar[float] = 1e-9
 
-    def _image_to_ground(self, row, col, h):
+    def image_to_ground(self, row, col, h):
         lon, lat, status = self._newton_image_to_ground(row + 1e-4, col, h)
         return lon, lat, status
 
@@ -447,8 +447,8 @@ class NarrowDomain(AffineCamera):
 
     name: ClassVar[str] = "broken-domain"
 
-    def _ground_to_image(self, lon, lat, h):
-        row, col = super()._ground_to_image(lon, lat, h)
+    def ground_to_image(self, lon, lat, h):
+        row, col = super().ground_to_image(lon, lat, h)
         rows, cols = self.shape
         outside = (row < -1e-3) | (col < -1e-3) | (row > rows - 1 + 1e-3) | (col > cols - 1 + 1e-3)
         return row, col, np.where(outside, np.uint8(Status.OUT_OF_DOMAIN), np.uint8(0))

@@ -12,6 +12,7 @@ from geoblock.io.blocks import (
 )
 from geoblock.io.dem import open_dem, write_dem
 from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
+from geoblock.io.metadata import Fields, XmlFields, read_xml
 from geoblock.io.models import open_model, write_model
 from geoblock.io.points import read_points, write_points
 
@@ -19,8 +20,10 @@ __all__ = [
     "Block",
     "BlockDem",
     "BlockImage",
+    "Fields",
     "ImageSource",
     "OpenedBlock",
+    "XmlFields",
     "open_block",
     "open_dem",
     "open_image",
@@ -28,6 +31,7 @@ __all__ = [
     "open_quietly",
     "read_block",
     "read_points",
+    "read_xml",
     "write_block",
     "write_dem",
     "write_image",

@@ -1,6 +1,7 @@
 """Sensor models: the protocol, the implementers' base class, parameters, registry, corrections,
 crops."""
 
+from geoblock._array import broadcast_float64, warn_status
 from geoblock.models.base import SensorModelBase, image_shape
 from geoblock.models.corrections import ImageCorrection
 from geoblock.models.crop import CroppedModel, model_for_image
@@ -15,8 +16,10 @@ __all__ = [
     "ParameterSet",
     "SensorModel",
     "SensorModelBase",
+    "broadcast_float64",
     "from_dict",
     "get_registry",
     "image_shape",
     "model_for_image",
+    "warn_status",
 ]

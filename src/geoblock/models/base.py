@@ -3,8 +3,8 @@
 An implementer writes the model's state, its parameters and **one** natural direction as a
 kernel on flat, finite float64 arrays:
 
-* ``_ground_to_image(lon, lat, h) -> (row, col[, status])`` (RPCs, affine cameras), or
-* ``_image_to_ground(row, col, h) -> (lon, lat[, status])`` (pushbroom line-of-sight models),
+* ``ground_to_image(lon, lat, h) -> (row, col[, status])`` (RPCs, affine cameras), or
+* ``image_to_ground(row, col, h) -> (lon, lat[, status])`` (pushbroom line-of-sight models),
 
 and the base class supplies the rest: broadcasting, NaN isolation and per-point status, the
 other direction by Newton iteration, numeric ground and parameter partials, lines of sight,
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import abc
 import json
+import warnings
 from collections.abc import Callable, Collection, Mapping
 from typing import Any, ClassVar, Self
 
@@ -111,12 +112,20 @@ def image_shape(value: Any, where: str, *, maximum: int = 10**7) -> tuple[int, i
     return sizes[0], sizes[1]
 
 
+#: Kernel names before geoblock 0.2, mapped to their public names (with a DeprecationWarning).
+_RENAMED_KERNELS = {
+    "_ground_to_image": "ground_to_image",
+    "_image_to_ground": "image_to_ground",
+    "_ground_seed": "ground_seed",
+}
+
+
 class SensorModelBase(abc.ABC):
     """Base class for sensor models, with defaults derived from a few abstract members.
 
     Subclasses set ``name`` (the registry key, lowercase-kebab) and ``schema_version``, and
     implement ``shape``, ``height_range``, ``parameters``, ``with_parameters``, ``to_dict``,
-    ``from_dict`` and at least one of ``_ground_to_image`` / ``_image_to_ground``. They may
+    ``from_dict`` and at least one of ``ground_to_image`` / ``image_to_ground``. They may
     override ``partials_ground`` and ``partials_parameters`` with analytic versions, which the
     conformance kit (:mod:`geoblock.testing`) compares with the numeric defaults, and offer
     named parameter presets through ``parameter_sets`` and ``with_parameter_set`` (the
@@ -140,14 +149,23 @@ class SensorModelBase(abc.ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
+        for old, new in _RENAMED_KERNELS.items():  # the private names of geoblock 0.1
+            if old in cls.__dict__ and new not in cls.__dict__:
+                warnings.warn(
+                    f"{cls.__qualname__}.{old} is deprecated: name the kernel {new} "
+                    "(the public name since geoblock 0.2)",
+                    DeprecationWarning,
+                    stacklevel=2,
+                )
+                setattr(cls, new, cls.__dict__[old])
         if getattr(cls, "__abstractmethods__", None):
             return
         if (
-            cls._ground_to_image is SensorModelBase._ground_to_image
-            and cls._image_to_ground is SensorModelBase._image_to_ground
+            cls.ground_to_image is SensorModelBase.ground_to_image
+            and cls.image_to_ground is SensorModelBase.image_to_ground
         ):
             raise TypeError(
-                f"{cls.__qualname__} must implement _ground_to_image or _image_to_ground "
+                f"{cls.__qualname__} must implement ground_to_image or image_to_ground "
                 "(the other direction is derived by Newton iteration)"
             )
 
@@ -252,24 +270,60 @@ class SensorModelBase(abc.ABC):
             )
 
     # ---------------------------------------------------------------- kernels
-    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
-        """Ground -> image on flat finite arrays; default: Newton on ``_image_to_ground``."""
+    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+        """The ground -> image kernel an implementer writes (or inherits).
+
+        Called by :meth:`project` with flat, finite, float64 arrays of one length ``(N,)``
+        (NaN points and broadcasting are handled before); never call it with anything else.
+
+        Parameters
+        ----------
+        lon, lat : ndarray, shape (N,)
+            Geodetic longitude and latitude, degrees (WGS84).
+        h : ndarray, shape (N,)
+            Height above the WGS84 ellipsoid, metres.
+
+        Returns
+        -------
+        tuple
+            ``(row, col)`` or ``(row, col, status)``: image coordinates, pixels, pixel-centre
+            convention (``(0, 0)`` is the centre of the first pixel), each ``(N,)``; ``status``
+            an int8 array of :class:`~geoblock.typing.Status` codes (NaN row/col where not
+            ``CONVERGED``). The default inverts :meth:`image_to_ground` by Newton iteration.
+        """
         return self._newton_ground_to_image(lon, lat, h)
 
-    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
-        """Image -> ground on flat finite arrays; default: Newton on ``_ground_to_image``."""
+    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+        """The image -> ground kernel an implementer writes (or inherits).
+
+        Called by :meth:`backproject` with flat, finite, float64 arrays of one length ``(N,)``.
+
+        Parameters
+        ----------
+        row, col : ndarray, shape (N,)
+            Image coordinates, pixels, pixel-centre convention.
+        h : ndarray, shape (N,)
+            Height above the WGS84 ellipsoid at which the line of sight is cut, metres.
+
+        Returns
+        -------
+        tuple
+            ``(lon, lat)`` or ``(lon, lat, status)``: degrees, each ``(N,)``, with an int8
+            :class:`~geoblock.typing.Status` array. The default inverts
+            :meth:`ground_to_image` by Newton iteration (seeded by :meth:`ground_seed`).
+        """
         return self._newton_image_to_ground(row, col, h)
 
-    def _ground_seed(self) -> tuple[float, float]:
+    def ground_seed(self) -> tuple[float, float]:
         """``(lon, lat)`` of a ground point near the image centre, degrees.
 
-        Needed only by models that implement ``_ground_to_image`` alone, to start the Newton
+        Needed only by models that implement ``ground_to_image`` alone, to start the Newton
         backprojection. The default backprojects nothing and so cannot know; such models
         override this (an RPC returns its LONG_OFF/LAT_OFF).
         """
         raise GeoblockError(
-            f"{type(self).__qualname__} implements only _ground_to_image: override "
-            "_ground_seed() to return a (lon, lat) near the image centre so that "
+            f"{type(self).__qualname__} implements only ground_to_image: override "
+            "ground_seed() to return a (lon, lat) near the image centre so that "
             "backproject can be derived"
         )
 
@@ -320,7 +374,7 @@ class SensorModelBase(abc.ABC):
     ) -> tuple[ImageCoords, np.ndarray]:
         """:meth:`project` without warnings, with the (*S,) ``uint8`` :class:`Status` array."""
         lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
-        row, col, status = self._apply(self._ground_to_image, "_ground_to_image", lon, lat, h)
+        row, col, status = self._apply(self.ground_to_image, "ground_to_image", lon, lat, h)
         return ImageCoords(row, col), status
 
     def backproject_with_status(
@@ -328,7 +382,7 @@ class SensorModelBase(abc.ABC):
     ) -> tuple[GroundCoords, np.ndarray]:
         """:meth:`backproject` without warnings, with the (*S,) ``uint8`` :class:`Status` array."""
         row, col, h = broadcast_float64(row=row, col=col, h=h)
-        lon, lat, status = self._apply(self._image_to_ground, "_image_to_ground", row, col, h)
+        lon, lat, status = self._apply(self.image_to_ground, "image_to_ground", row, col, h)
         h_out = np.where(status == _CONVERGED, h, np.nan)
         return GroundCoords(lon, lat, h_out), status
 
@@ -506,16 +560,16 @@ class SensorModelBase(abc.ABC):
 
     # ---------------------------------------------------------------- Newton inversions
     def _newton_image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
-        """Backproject by Newton iteration on ``_ground_to_image`` in (lon, lat).
+        """Backproject by Newton iteration on ``ground_to_image`` in (lon, lat).
 
-        Start: a linearisation at ``_ground_seed()``. Each iteration uses a forward-difference
+        Start: a linearisation at ``ground_seed()``. Each iteration uses a forward-difference
         Jacobian (1e-6 degree steps) and halves a step that increases the residual (up to 8
         times). Converged when the image residual is below ``newton_tolerance_px``, or below
         ``newton_stall_px`` when no step reduces it any more (float64's floor); a point
         whose forward projection fails becomes DIVERGED, one that runs out of iterations
         MAX_ITERATIONS.
         """
-        lon0, lat0 = self._ground_seed()
+        lon0, lat0 = self.ground_seed()
         n = row.shape[0]
         lon = np.full(n, float(lon0))
         lat = np.full(n, float(lat0))
@@ -539,7 +593,7 @@ class SensorModelBase(abc.ABC):
         )
 
     def _newton_ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
-        """Project by Newton iteration on ``_image_to_ground`` in (row, col).
+        """Project by Newton iteration on ``image_to_ground`` in (row, col).
 
         The residual is the ground miss in local metres (east, north); the Jacobian is a
         forward difference with 0.1-pixel steps; converged when the pixel step is below
@@ -580,7 +634,7 @@ class SensorModelBase(abc.ABC):
     def _forward_flat(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
         """(N, 2) image coordinates from the ground->image kernel; NaN where it fails."""
         r, c, s = _unpack(
-            self._ground_to_image(lon, lat, h), lon.shape[0], self, "_ground_to_image"
+            self.ground_to_image(lon, lat, h), lon.shape[0], self, "ground_to_image"
         )
         out = np.stack([r, c], axis=-1)
         out[s != _CONVERGED] = np.nan
@@ -588,7 +642,7 @@ class SensorModelBase(abc.ABC):
 
     def _backward_flat(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         lo, la, s = _unpack(
-            self._image_to_ground(row, col, h), row.shape[0], self, "_image_to_ground"
+            self.image_to_ground(row, col, h), row.shape[0], self, "image_to_ground"
         )
         bad = s != _CONVERGED
         lo = np.where(bad, np.nan, lo)

@@ -104,7 +104,7 @@ class ImageSpaceCorrection(SensorModelBase):
         return row.copy(), col.copy()
 
     # ------------------------------------------------------------------ kernels
-    def _ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon, lat, h):
         (r, c), status = self._model.project_with_status(lon, lat, h)
         delta = self._offset(r, c)
         return r + delta[..., 0], c + delta[..., 1], status
@@ -115,7 +115,7 @@ class ImageSpaceCorrection(SensorModelBase):
         return invert_correction(self._correction, row, col, r0, c0,
                                  self.inversion_tolerance_px, self.inversion_max_iterations)
 
-    def _image_to_ground(self, row, col, h):
+    def image_to_ground(self, row, col, h):
         r, c, status = self._uncorrect(row, col)
         (lon, lat, _), inner = self._model.backproject_with_status(r, c, h)
         return lon, lat, np.maximum(status, inner)

@@ -183,11 +183,11 @@ class CroppedModel(SensorModelBase):
     # One path: SensorModelBase's public directions (broadcasting, NaN isolation, statuses,
     # chunking) call these kernels, which shift and hand the flat finite points to the
     # wrapped model's *_with_status (its statuses, its own chunking).
-    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
         (row, col), status = self._model.project_with_status(lon, lat, h)
         return row - self._offset[0], col - self._offset[1], status
 
-    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         (lon, lat, _), status = self._model.backproject_with_status(
             row + self._offset[0], col + self._offset[1], h)
         return lon, lat, status

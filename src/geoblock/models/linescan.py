@@ -938,7 +938,7 @@ class LinescanModel(SensorModelBase):
         return ~((h >= h0 - margin) & (h <= h1 + margin))
 
     # ------------------------------------------------------------------ image -> ground
-    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         t = self._line_times.time(row)
         pos, _, rot, _ = self._state(t)
         u = np.einsum("nij,nj->ni", rot, self._look.at(col))
@@ -1036,7 +1036,7 @@ class LinescanModel(SensorModelBase):
             x0, f0, x1, f1, col1, dz1 = x1, f1, x, f, col, d[:, 2]
         return t_out, col_out, status
 
-    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
         # no place on the Earth (lon=1e300 is some longitude once in sin/cos) or a height far
         # outside the model's range: OUT_OF_DOMAIN, not solved
         outside = (~((np.abs(lon) <= 540.0) & (np.abs(lat) <= 90.0))
@@ -1047,14 +1047,14 @@ class LinescanModel(SensorModelBase):
             status = np.full(lon.shape, _OUT, dtype=np.uint8)
             keep = ~outside
             if np.any(keep):
-                row[keep], col[keep], status[keep] = self._ground_to_image(
+                row[keep], col[keep], status[keep] = self.ground_to_image(
                     lon[keep], lat[keep], h[keep])
             return row, col, status
         g = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
         t, col, status = self._solve_time(g)
         return self._line_times.row(t), col, status
 
-    def _ground_seed(self) -> tuple[float, float]:
+    def ground_seed(self) -> tuple[float, float]:
         rows, cols = self._shape
         g, status = self.backproject_with_status((rows - 1) / 2.0, (cols - 1) / 2.0, 0.0)
         return float(g.lon), float(g.lat)

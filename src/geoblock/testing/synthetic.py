@@ -117,10 +117,10 @@ class AffineCamera(SensorModelBase):
         return cls(tuple(data["shape"]), tuple(data["origin"]), params.values,
                    tuple(data["height_range"]), params.sigmas)
 
-    def _ground_seed(self) -> tuple[float, float]:
+    def ground_seed(self) -> tuple[float, float]:
         return self._origin[0], self._origin[1]
 
-    def _ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon, lat, h):
         e, n, u = self._frame.from_geodetic(lon, lat, h)
         design = np.stack([np.ones_like(e), e, n, u], axis=-1)
         rc = design @ self.coefficients.T
@@ -267,7 +267,7 @@ class ConstantVelocityPushbroom(SensorModelBase):
         r_yaw = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
         return r_yaw @ r_pitch @ r_roll
 
-    def _image_to_ground(self, row, col, h):
+    def image_to_ground(self, row, col, h):
         t = row * self._line_period
         origin_enu = self._position + t[:, None] * self._velocity
         tan_psi = (col - (self._shape[1] - 1) / 2.0) * self._ifov

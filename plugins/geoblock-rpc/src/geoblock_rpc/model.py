@@ -204,7 +204,7 @@ class RpcModel(SensorModelBase):
         except ModelFormatError as exc:  # the JSON reader names the file of a SerializationError
             raise SerializationError(str(exc)) from exc
 
-    def _ground_seed(self) -> tuple[float, float]:
+    def ground_seed(self) -> tuple[float, float]:
         return self._rpc.long_off, self._rpc.lat_off
 
     # ------------------------------------------------------------------ directions
@@ -238,11 +238,11 @@ class RpcModel(SensorModelBase):
             status.reshape(shape),
         )
 
-    def _ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon, lat, h):
         (row, col), status = self.project_with_status(lon, lat, h)
         return row, col, status
 
-    def _image_to_ground(self, row, col, h):
+    def image_to_ground(self, row, col, h):
         (lon, lat, _), status = self.backproject_with_status(row, col, h)
         return lon, lat, status
 

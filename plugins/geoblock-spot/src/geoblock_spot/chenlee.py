@@ -753,7 +753,7 @@ class ChenLeeModel(SensorModelBase):
         row = t / lp
         return row, col, u3
 
-    def _ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
         p = self._frame.from_geodetic(lon, lat, h)
         t, status = self._solve_time(p)
         ok = status == Status.CONVERGED
@@ -799,7 +799,7 @@ class ChenLeeModel(SensorModelBase):
         p[ok] = self._frame.from_ecef(o[ok] + s[ok, None] * d[ok])
         return p, status, lon, lat
 
-    def _image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
         _, status, lon, lat = self._backproject_work(row, col, h)
         return lon, lat, status
 
@@ -812,7 +812,7 @@ class ChenLeeModel(SensorModelBase):
         out = np.full((lon.size, 2, width), np.nan)
         ok = np.isfinite(lon) & np.isfinite(lat) & np.isfinite(h)
         if ok.any():
-            row, col, status = self._ground_to_image(lon[ok], lat[ok], h[ok])
+            row, col, status = self.ground_to_image(lon[ok], lat[ok], h[ok])
             good = status == Status.CONVERGED
             idx = np.flatnonzero(ok)[good]
             p = self._frame.from_geodetic(lon[idx], lat[idx], h[idx])

@@ -154,7 +154,7 @@ class FrameCamera(SensorModelBase):
     # --8<-- [end:state]
     # --8<-- [start:geometry]
     # ---------------------------------------------------------------- geometry
-    def _ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon, lat, h):
         """Collinearity on flat finite float64 arrays (N,); returns (row, col, status)."""
         enu = np.stack(self._frame.from_geodetic(lon, lat, h), axis=-1)  # (N, 3)
         cam = (enu - self._parameters.values[:3]) @ self._rotation.T  # (N, 3) camera axes
@@ -165,7 +165,7 @@ class FrameCamera(SensorModelBase):
         status = np.where(behind, np.uint8(Status.OUT_OF_DOMAIN), np.uint8(Status.CONVERGED))
         return row, col, status
 
-    def _ground_seed(self) -> tuple[float, float]:
+    def ground_seed(self) -> tuple[float, float]:
         """Where the principal ray meets the middle of the height range (the Newton start)."""
         look = self._rotation.T @ np.array([0.0, 0.0, -1.0])  # camera -z axis in ENU
         start = self._parameters.values[:3]
