@@ -1,0 +1,194 @@
+"""Plain files: text, JSON, CSV, TOML and figures, read with errors naming the file and written
+atomically (a temporary beside the target, then a rename: a reader never sees half a file and
+a failure leaves any previous file intact).
+
+These are the doors the rest of geoblock uses for files that are not sensor models, DEMs,
+images, point files or block files (reports, scenario definitions, demo outputs).
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import json
+import os
+import tomllib
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+from geoblock.errors import GeoblockIOError, MetadataFieldError
+from geoblock.io._atomic import atomic_directory as _atomic_directory
+from geoblock.io._atomic import atomic_path
+
+__all__ = [
+    "atomic_directory",
+    "make_directory",
+    "read_json",
+    "read_text",
+    "read_toml",
+    "save_figure",
+    "write_bytes",
+    "write_csv",
+    "write_json",
+    "write_text",
+    "write_with",
+]
+
+
+def read_text(path: str | os.PathLike[str], what: str = "") -> str:
+    """The UTF-8 text of ``path`` (a BOM is dropped).
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be read or is not UTF-8 (names the file).
+    """
+    path = Path(path)
+    try:
+        return path.read_bytes().decode("utf-8-sig")
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot read {what}{path}: {exc.strerror or exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise GeoblockIOError(f"cannot read {what}{path}: not UTF-8 text ({exc})") from None
+
+
+def read_toml(path: str | os.PathLike[str], what: str = "") -> dict[str, Any]:
+    """The TOML document at ``path`` as a dict.
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be read.
+    MetadataFieldError
+        The file is not valid TOML (the message names the file and the parser's line/column).
+    """
+    text = read_text(path, what)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MetadataFieldError(str(path), "TOML", f"not valid TOML: {exc}") from None
+
+
+def read_json(path: str | os.PathLike[str], what: str = "") -> Any:
+    """The JSON document at ``path``.
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be read.
+    MetadataFieldError
+        The file is not valid JSON (names the file, line and column).
+    """
+    text = read_text(path, what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise MetadataFieldError(str(path), "JSON", f"not valid JSON: {exc}") from None
+
+
+def write_with(
+    path: str | os.PathLike[str], write: Callable[[IO[bytes]], None], what: str = ""
+) -> Path:
+    """Call ``write(file)`` on a binary temporary beside ``path``, then rename it to ``path``.
+
+    The file is made world-readable (0644), as a plain ``open`` under the usual umask would.
+
+    Raises
+    ------
+    GeoblockIOError
+        The folder does not exist or the file cannot be written (names the path).
+    """
+    with atomic_path(path, what) as tmp:
+        with open(tmp, "wb") as f:
+            write(f)
+        os.chmod(tmp, 0o644)
+    return Path(path)
+
+
+def write_bytes(path: str | os.PathLike[str], data: bytes, what: str = "") -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return write_with(path, lambda f: f.write(data), what)
+
+
+def write_text(path: str | os.PathLike[str], text: str, what: str = "") -> Path:
+    """Write ``text`` to ``path`` as UTF-8 (``\\n`` line ends), atomically."""
+    return write_bytes(path, text.encode("utf-8"), what)
+
+
+def write_json(path: str | os.PathLike[str], data: Any, what: str = "", indent: int = 1) -> Path:
+    """Write ``data`` as JSON (no NaN or infinity: they are not JSON), with a final newline.
+
+    Raises
+    ------
+    GeoblockIOError
+        ``data`` holds a value JSON cannot represent (names the path), or writing fails.
+    """
+    try:
+        text = json.dumps(data, indent=indent, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise GeoblockIOError(f"cannot write {what}{path}: not JSON-safe ({exc})") from exc
+    return write_text(path, text + "\n", what)
+
+
+def write_csv(
+    path: str | os.PathLike[str],
+    rows: Iterable[Mapping[str, Any]] | Sequence[Sequence[Any]],
+    header: Sequence[str] | None = None,
+    what: str = "",
+) -> Path:
+    """Write a CSV file (``\\n`` line ends) atomically.
+
+    ``rows`` are mappings (their keys, in order of first appearance, make the header unless
+    ``header`` is given) or sequences (then ``header`` is the first line, if given).
+    """
+    buffer = _io.StringIO()
+    rows = list(rows)
+    if rows and isinstance(rows[0], Mapping):
+        fields = list(header) if header is not None else list(
+            dict.fromkeys(k for r in rows for k in r)  # type: ignore[union-attr]
+        )
+        writer: Any = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    else:
+        writer = csv.writer(buffer, lineterminator="\n")
+        if header is not None:
+            writer.writerow(header)
+        writer.writerows(rows)
+    return write_text(path, buffer.getvalue(), what)
+
+
+def save_figure(figure: Any, path: str | os.PathLike[str], what: str = "", **options: Any) -> Path:
+    """Save a matplotlib ``figure`` to ``path`` atomically (``options`` go to ``savefig``;
+    the format is taken from the suffix of ``path``)."""
+    fmt = options.pop("format", None) or Path(path).suffix.lstrip(".") or "png"
+    return write_with(path, lambda f: figure.savefig(f, format=fmt, **options), what)
+
+
+def make_directory(path: str | os.PathLike[str], what: str = "") -> Path:
+    """Create the directory ``path`` and its parents if needed.
+
+    Raises
+    ------
+    GeoblockIOError
+        It exists as a file, or cannot be created (names the path).
+    """
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot create {what}{path}: {exc.strerror or exc}") from exc
+    return path
+
+
+@contextmanager
+def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
+    """A temporary directory that replaces the directory ``path`` as a whole on success.
+
+    On failure ``path`` stays as it was and the temporary is removed. Write into the
+    yielded directory with this module's functions.
+    """
+    with _atomic_directory(path, what) as tmp:
+        yield tmp

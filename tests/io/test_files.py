@@ -1,0 +1,71 @@
+"""Plain-file doors of geoblock.io: atomic writes and reads that name the file."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from geoblock.errors import GeoblockIOError, MetadataFieldError
+from geoblock.io import files
+
+
+def test_round_trips(tmp_path):
+    files.write_text(tmp_path / "a.md", "# é\n")
+    assert files.read_text(tmp_path / "a.md") == "# é\n"
+    files.write_json(tmp_path / "a.json", {"x": [1, 2]})
+    assert files.read_json(tmp_path / "a.json") == {"x": [1, 2]}
+    (tmp_path / "a.toml").write_text('x = 1\n[t]\ny = "z"\n')
+    assert files.read_toml(tmp_path / "a.toml") == {"x": 1, "t": {"y": "z"}}
+    files.write_csv(tmp_path / "a.csv", [{"id": "p1", "v": 1.5}, {"id": "p2", "v": 2}])
+    assert (tmp_path / "a.csv").read_text() == "id,v\np1,1.5\np2,2\n"
+    files.write_csv(tmp_path / "b.csv", [[1, 2]], header=["a", "b"])
+    assert (tmp_path / "b.csv").read_text() == "a,b\n1,2\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "a.csv", "a.json", "a.md", "a.toml", "b.csv"]  # no temporaries left
+
+
+def test_errors_name_the_file(tmp_path):
+    with pytest.raises(GeoblockIOError, match="missing.toml"):
+        files.read_toml(tmp_path / "missing.toml")
+    (tmp_path / "bad.toml").write_text("x = = 1\n")
+    with pytest.raises(MetadataFieldError, match=r"bad.toml: TOML: not valid TOML"):
+        files.read_toml(tmp_path / "bad.toml")
+    (tmp_path / "latin1.txt").write_bytes("é".encode("latin-1"))
+    with pytest.raises(GeoblockIOError, match=r"latin1.txt: not UTF-8"):
+        files.read_text(tmp_path / "latin1.txt")
+    with pytest.raises(GeoblockIOError, match=r"no-such-dir"):
+        files.write_text(tmp_path / "no-such-dir" / "x.txt", "x")
+    with pytest.raises(GeoblockIOError, match=r"not JSON-safe"):
+        files.write_json(tmp_path / "nan.json", {"x": float("nan")})
+    assert not (tmp_path / "nan.json").exists()
+
+
+def test_a_failed_write_keeps_the_previous_file(tmp_path):
+    target = tmp_path / "keep.json"
+    files.write_json(target, {"v": 1})
+
+    def boom(f):
+        f.write(b"half")
+        raise RuntimeError("interrupted")
+
+    with pytest.raises(RuntimeError):
+        files.write_with(target, boom)
+    assert json.loads(target.read_text()) == {"v": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.json"]
+
+
+def test_atomic_directory_and_figures(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = tmp_path / "out"
+    with files.atomic_directory(out) as tmp:
+        fig, ax = plt.subplots()
+        ax.plot([0, 1])
+        files.save_figure(fig, tmp / "f.png", dpi=50)
+        plt.close(fig)
+        files.make_directory(tmp / "models")
+    assert (out / "f.png").read_bytes()[:4] == b"\x89PNG" and (out / "models").is_dir()
