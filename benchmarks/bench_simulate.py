@@ -11,7 +11,7 @@ Every case runs in its own Python process, so that its peak resident set size (R
   al.'s finest DEM). Printed: the truth's time, measured_dem's time, the process's RSS before
   measured_dem and its peak during it (Linux: the peak is reset through ``/proc/self/clear_refs``
   before the call; elsewhere the process's peak is shown), and the whole process's peak.
-* ``<preset> <variant>``: :func:`geoblock.simulate.scenario.run_scenario` of the preset into a
+* ``<preset> <variant>``: :func:`geoblock.workflows.run_scenario` of the preset into a
   temporary folder (what ``geoblock simulate <preset> OUT --variant <variant>`` does), with
   its stage timings (``timings.json``).
 
@@ -54,7 +54,8 @@ def _worker_measured_dem(size_km: float) -> dict:
 
 
 def _worker_preset(name: str, variant: str, outdir: str) -> dict:
-    from geoblock.simulate.scenario import preset, run_scenario
+    from geoblock.simulate.scenario import preset
+    from geoblock.workflows import run_scenario
 
     t0 = time.perf_counter()
     result = run_scenario(preset(name, variant), outdir)

@@ -7,10 +7,26 @@ from pathlib import Path
 
 import pytest
 
+import geoblock.testing
+from geoblock.plugins import PLUGIN_MODULES_VARIABLE
+from geoblock.testing.plugin import MODULE as SYNTHETIC_MODELS
 from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
 REPO = Path(__file__).resolve().parents[1]
 DATA_DIR = Path(os.environ.get("GEOBLOCK_TEST_DATA", REPO.parent / "shared" / "data"))
+
+
+def enable_synthetic_models_everywhere() -> None:
+    """The synthetic test models are opt-in (they are not user models). geoblock's own tests
+    use them in this process and in the processes they start (the ``geoblock`` command), so
+    both get them: the Python switch here, the environment variable for subprocesses."""
+    geoblock.testing.enable_synthetic_models()
+    named = [m.strip() for m in os.environ.get(PLUGIN_MODULES_VARIABLE, "").split(",")]
+    if SYNTHETIC_MODELS not in named:
+        os.environ[PLUGIN_MODULES_VARIABLE] = ",".join([*filter(None, named), SYNTHETIC_MODELS])
+
+
+enable_synthetic_models_everywhere()
 
 
 @pytest.fixture(scope="session")

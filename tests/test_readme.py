@@ -7,9 +7,18 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 
 
 def test_quickstart_runs(tmp_path, monkeypatch, capsys):
+    """As a user runs it: without the test suite's opt-in synthetic models."""
+    import geoblock.testing
+    from geoblock.plugins import PLUGIN_MODULES_VARIABLE
+
     code = re.search(r"```python\n(.*?)```", README.read_text(), re.S).group(1)
     monkeypatch.chdir(tmp_path)
-    exec(compile(code, str(README), "exec"), {})
+    monkeypatch.delenv(PLUGIN_MODULES_VARIABLE, raising=False)
+    geoblock.testing.disable_synthetic_models()
+    try:
+        exec(compile(code, str(README), "exec"), {})
+    finally:
+        geoblock.testing.enable_synthetic_models()
     out = capsys.readouterr().out
     assert "converged" in out and "a0" in out
     assert (tmp_path / "scene.json").is_file()

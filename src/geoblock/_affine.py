@@ -6,10 +6,12 @@ from __future__ import annotations
 import numpy as np
 from affine import Affine
 
+from geoblock.typing import ArrayLike
+
 __all__ = ["apply"]
 
 
-def apply(transform: Affine, x, y) -> tuple[np.ndarray, np.ndarray]:
+def apply(transform: Affine, x: ArrayLike, y: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """``transform`` applied to points: ``(a x + b y + c, d x + e y + f)``, float64 arrays."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)

@@ -8,6 +8,7 @@ import warnings
 
 import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from geoblock.errors import (
     ConvergenceWarning,
@@ -15,7 +16,7 @@ from geoblock.errors import (
     OutOfBoundsWarning,
     ShapeMismatchError,
 )
-from geoblock.typing import Status
+from geoblock.typing import ArrayLike, Float64Array, Status
 
 _WARNINGS = {
     Status.MAX_ITERATIONS: (ConvergenceWarning, "reached the iteration cap"),
@@ -26,7 +27,7 @@ _WARNINGS = {
 }
 
 
-def broadcast_float64(*, _copy: bool = True, **arrays) -> tuple[np.ndarray, ...]:
+def broadcast_float64(*, _copy: bool = True, **arrays: ArrayLike) -> tuple[Float64Array, ...]:
     """Broadcast named coordinate arguments together as float64 arrays.
 
     The results are writable copies, unless ``_copy=False``: then read-only views (no copy
@@ -56,7 +57,7 @@ def broadcast_float64(*, _copy: bool = True, **arrays) -> tuple[np.ndarray, ...]
     return tuple(np.array(a, dtype=np.float64) for a in out)
 
 
-def warn_status(status: np.ndarray, operation: str, stacklevel: int = 3) -> None:
+def warn_status(status: NDArray[np.uint8], operation: str, stacklevel: int = 3) -> None:
     """Emit one warning per failure category present in ``status``, with the count.
 
     Non-finite inputs (``INVALID_INPUT``) give NaN silently: NaN in, NaN out.
@@ -75,7 +76,9 @@ def warn_status(status: np.ndarray, operation: str, stacklevel: int = 3) -> None
 
 
 @numba.njit(nogil=True, cache=True)
-def _nb_finite_bounds(x, y):  # pragma: no cover - compiled
+def _nb_finite_bounds(  # pragma: no cover - compiled
+    x: Float64Array, y: Float64Array
+) -> tuple[float, float, float, float]:
     x_lo = math.inf
     x_hi = -math.inf
     y_lo = math.inf
@@ -94,7 +97,7 @@ def _nb_finite_bounds(x, y):  # pragma: no cover - compiled
     return x_lo, x_hi, y_lo, y_hi
 
 
-def finite_bounds(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
+def finite_bounds(x: ArrayLike, y: ArrayLike) -> tuple[float, float, float, float]:
     """``(x_min, x_max, y_min, y_max)`` of two same-shape float arrays in one compiled pass,
     ignoring NaN (as ``np.fmin``/``np.fmax`` reductions do); NaN for an all-NaN array.
 
@@ -103,9 +106,9 @@ def finite_bounds(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, fl
     >>> finite_bounds(np.array([1.0, np.nan, -2.0]), np.array([np.nan, 5.0, 4.0]))
     (-2.0, 1.0, 4.0, 5.0)
     """
-    x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
-    y = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
-    x_lo, x_hi, y_lo, y_hi = _nb_finite_bounds(x, y)
+    xs = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+    ys = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+    x_lo, x_hi, y_lo, y_hi = _nb_finite_bounds(xs, ys)
     out = []
     for lo, hi in ((x_lo, x_hi), (y_lo, y_hi)):
         if lo > hi:  # no finite value (NaN never compares)

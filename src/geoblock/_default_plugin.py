@@ -1,59 +1,52 @@
 """geoblock's built-in plugin: core models and geoblock's own model JSON, through the same hooks
-as any third-party plugin."""
+as any third-party plugin.
+
+The synthetic test models (``synthetic-affine``, ``synthetic-pushbroom``) are not registered
+here: they are test models, loaded on request from :mod:`geoblock.testing.plugin`.
+"""
 
 from __future__ import annotations
 
-import json
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 from geoblock.errors import GeoblockError, ModelFormatError, UnknownModelError
 from geoblock.hookspecs import hookimpl
 from geoblock.models.corrections import ImageCorrection
+from geoblock.models.protocol import SensorModel
 
 
 @hookimpl
-def geoblock_register_sensor_models(register):
+def geoblock_register_sensor_models(register: Callable[[type], None]) -> None:
     from geoblock.adjust.collocation import CollocationCorrection
     from geoblock.models.crop import CroppedModel
     from geoblock.models.linescan import LinescanModel
-    from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
 
     register(ImageCorrection)
     register(CollocationCorrection)
     register(CroppedModel)
     register(LinescanModel)
-    register(AffineCamera)
-    register(ConstantVelocityPushbroom)
-
-
-def _looks_like_model_json(path: Path) -> dict | None:
-    if path.suffix.lower() != ".json":
-        return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        return None
-    if isinstance(data, dict) and isinstance(data.get("model"), str) and "schema_version" in data:
-        return data
-    return None
 
 
 @hookimpl(tryfirst=True)
-def geoblock_read_sensor_model(path, model_name, options):
+def geoblock_read_sensor_model(
+    path: Path, model_name: str | None, options: Mapping[str, Any]
+) -> SensorModel | None:
     """geoblock model JSON: a ``to_dict()`` object with ``model`` and ``schema_version``."""
-    if Path(path).is_dir():
-        return None
-    data = _looks_like_model_json(path)
+    from geoblock.io.models import read_model_json
+
+    data = read_model_json(path)
     if data is None:
         return None
     if model_name is not None and data["model"] != model_name:
         return None
-    from geoblock.models.registry import from_dict
+    from geoblock.plugins import from_dict
 
     try:
         return from_dict(data)
     except UnknownModelError as exc:  # the model (or a wrapped one) is not registered
-        raise UnknownModelError(f"{path}: {exc}") from exc
+        raise UnknownModelError(f"{path}: {exc}{_test_model_hint(data)}") from exc
     except GeoblockError as exc:  # any model's refusal of its fields: name the file
         if str(path) in str(exc):
             raise
@@ -61,17 +54,36 @@ def geoblock_read_sensor_model(path, model_name, options):
 
 
 @hookimpl(trylast=True)
-def geoblock_write_sensor_model(model, path, format, options):
+def geoblock_write_sensor_model(
+    model: SensorModel, path: Path, format: str, options: Mapping[str, Any]
+) -> bool | None:
     if format != "json":
         return None
-    try:
-        text = json.dumps(model.to_dict(), indent=1, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise ModelFormatError(
-            f"{path}: model {model.name!r} is not JSON-safe (to_dict() holds {exc})"
-        ) from exc
-    from geoblock.io._atomic import atomic_path
+    from geoblock.io.models import write_model_json
 
-    with atomic_path(path, "model JSON ") as tmp:
-        tmp.write_text(text + "\n", encoding="utf-8")
+    write_model_json(model, path)
     return True
+
+
+def _model_names(data: Any) -> Iterator[str]:
+    """Every ``"model"`` name in a model dictionary, wrapped models' included."""
+    if isinstance(data, Mapping):
+        if isinstance(data.get("model"), str):
+            yield data["model"]
+        for value in data.values():
+            yield from _model_names(value)
+    elif isinstance(data, list):
+        for value in data:
+            yield from _model_names(value)
+
+
+def _test_model_hint(data: Mapping[str, Any]) -> str:
+    """How to load geoblock's synthetic test models, when ``data`` uses one of them."""
+    from geoblock.testing.plugin import MODEL_NAMES, MODULE
+
+    used = sorted(set(_model_names(data)) & set(MODEL_NAMES))
+    if not used:
+        return ""
+    return (f". {', '.join(map(repr, used))} is one of geoblock's synthetic test models, not "
+            f"registered unless asked for: set GEOBLOCK_PLUGIN_MODULES={MODULE} in the "
+            "environment, or call geoblock.testing.enable_synthetic_models() in Python")

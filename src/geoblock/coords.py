@@ -12,13 +12,17 @@ micrometre; pyproj is used for map projections (:func:`utm_crs`, :func:`transfor
 from __future__ import annotations
 
 import functools
+import math
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pyproj
 
 from geoblock._array import broadcast_float64
+from geoblock.errors import CoordinateError
 from geoblock.typing import ArrayLike, EcefCoords, Float64Array, GroundCoords, Status
 
 __all__ = [
@@ -123,10 +127,14 @@ def ecef_to_geodetic(x: ArrayLike, y: ArrayLike, z: ArrayLike) -> GroundCoords:
     return GroundCoords(*_nan_where_invalid((x, y, z), (lon, lat, h)))
 
 
-def _nan_where_invalid(inputs, outputs):
+def _nan_where_invalid(
+    inputs: tuple[np.ndarray, np.ndarray, np.ndarray],
+    outputs: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[Float64Array, Float64Array, Float64Array]:
     """NaN in, NaN out: every output is NaN where any input is not finite."""
     bad = ~(np.isfinite(inputs[0]) & np.isfinite(inputs[1]) & np.isfinite(inputs[2]))
-    return tuple(np.where(bad, np.nan, o) for o in outputs)
+    a, b, c = (np.where(bad, np.nan, o) for o in outputs)
+    return a, b, c
 
 
 def enu_rotation(lon: ArrayLike, lat: ArrayLike) -> Float64Array:
@@ -251,11 +259,16 @@ def ecef_to_geodetic_jacobian(lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> F
 
 @dataclass(frozen=True)
 class LocalFrame:
-    """A local tangent-plane (east, north, up) work frame at a chosen origin.
+    """A local tangent-plane work frame at a chosen origin: east/north/up, or turned by an
+    azimuth.
 
     This is the "work coordinate system" of Teo et al. (2010): a local Cartesian frame whose
     origin is usually the centroid of the control points, in which Earth curvature does not
-    enter the collinearity equations.
+    enter the collinearity equations. Its third axis ``Z`` is the ellipsoid normal (up) at the
+    origin; its first axis ``X`` the horizontal direction at ``azimuth_deg`` (clockwise from
+    north), and ``Y = Z x X`` (to the left of ``X``). The default ``azimuth_deg = 90`` gives
+    plain east/north/up ``(e, n, u)``; the ground-track heading gives ``X`` along track, the
+    LVLH-like axes of Teo et al. and of Chen & Lee's SPOT model.
 
     Parameters
     ----------
@@ -263,6 +276,13 @@ class LocalFrame:
         Origin, degrees.
     h0 : float
         Origin height above the ellipsoid, metres.
+    azimuth_deg : float
+        Direction of ``X``, degrees clockwise from north (default 90: ``X`` east).
+
+    Raises
+    ------
+    CoordinateError
+        A non-finite value, or ``lat0`` outside [-90, 90].
 
     Examples
     --------
@@ -270,64 +290,125 @@ class LocalFrame:
     >>> e, n, u = frame.from_geodetic(7.0, 43.7, 110.0)
     >>> round(float(u), 9)
     10.0
+    >>> south = LocalFrame(7.0, 43.7, 100.0, azimuth_deg=180.0)  # X south, Y east, Z up
+    >>> x, y, z = south.from_geodetic(7.0, 43.69, 100.0)
+    >>> round(float(x)), round(float(y))
+    (1111, 0)
     """
 
     lon0: float
     lat0: float
     h0: float = 0.0
+    azimuth_deg: float = 90.0
 
     def __post_init__(self) -> None:
-        for name in ("lon0", "lat0", "h0"):
-            value = float(getattr(self, name))
+        for name in ("lon0", "lat0", "h0", "azimuth_deg"):
+            try:
+                value = float(getattr(self, name))
+            except (TypeError, ValueError):
+                raise CoordinateError(
+                    f"LocalFrame: {name} must be a number, got {getattr(self, name)!r}"
+                ) from None
             if not np.isfinite(value):
-                raise ValueError(f"LocalFrame: {name} must be finite, got {value!r}")
+                raise CoordinateError(f"LocalFrame: {name} must be finite, got {value!r}")
             object.__setattr__(self, name, value)
         if not -90.0 <= self.lat0 <= 90.0:
-            raise ValueError(f"LocalFrame: lat0 must be within [-90, 90] degrees, got {self.lat0}")
+            raise CoordinateError(
+                f"LocalFrame: lat0 must be within [-90, 90] degrees, got {self.lat0}"
+            )
 
     @classmethod
-    def centred_on(cls, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> LocalFrame:
-        """A frame at the ECEF centroid of the finite points given (e.g. the GCPs)."""
+    def centred_on(
+        cls, lon: ArrayLike, lat: ArrayLike, h: ArrayLike, azimuth_deg: float = 90.0
+    ) -> LocalFrame:
+        """A frame at the ECEF centroid of the finite points given (e.g. the GCPs), at their
+        mean height, with ``X`` at ``azimuth_deg``.
+
+        Raises
+        ------
+        CoordinateError
+            No point is finite.
+        """
         lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)
         x, y, z = geodetic_to_ecef(lon, lat, h)
         ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
         if not ok.any():
-            raise ValueError("LocalFrame.centred_on: no finite point given")
+            raise CoordinateError("LocalFrame.centred_on: no finite point given")
         centre = ecef_to_geodetic(x[ok].mean(), y[ok].mean(), z[ok].mean())
         # The ECEF centroid lies below the surface; put the origin at the points' mean height.
-        return cls(float(centre.lon), float(centre.lat), float(h[ok].mean()))
+        return cls(float(centre.lon), float(centre.lat), float(h[ok].mean()), azimuth_deg)
 
     @functools.cached_property
     def rotation(self) -> Float64Array:
-        """(3, 3) ECEF -> ENU rotation at the origin (rows: east, north, up)."""
-        return enu_rotation(self.lon0, self.lat0)
+        """(3, 3) ECEF -> frame rotation: rows are the unit ``X, Y, Z`` axes in ECEF (east,
+        north, up at the default azimuth); ``local = R @ (xyz - origin_ecef)``."""
+        enu = enu_rotation(self.lon0, self.lat0)
+        if self.azimuth_deg == 90.0:  # east/north/up exactly (no cos(90 deg) = 6e-17 terms)
+            out = enu
+        else:
+            a = math.radians(self.azimuth_deg)
+            sa, ca = math.sin(a), math.cos(a)
+            enu_to_frame = np.array([[sa, ca, 0.0], [-ca, sa, 0.0], [0.0, 0.0, 1.0]])
+            out = enu_to_frame @ enu
+        out.flags.writeable = False
+        return out
 
     @functools.cached_property
     def origin_ecef(self) -> Float64Array:
         """(3,) ECEF coordinates of the origin, metres."""
-        return np.array(geodetic_to_ecef(self.lon0, self.lat0, self.h0), dtype=np.float64)
+        out = np.array(geodetic_to_ecef(self.lon0, self.lat0, self.h0), dtype=np.float64)
+        out.flags.writeable = False
+        return out
 
     def from_ecef(self, x: ArrayLike, y: ArrayLike, z: ArrayLike) -> tuple[Float64Array, ...]:
-        """ECEF metres -> local ``(e, n, u)`` metres."""
-        xyz = np.stack(broadcast_float64(x=x, y=y, z=z), axis=-1) - self.origin_ecef
-        enu = xyz @ self.rotation.T
-        return enu[..., 0], enu[..., 1], enu[..., 2]
+        """ECEF metres -> local ``(X, Y, Z)`` metres (``(e, n, u)`` at azimuth 90), each (*S,)."""
+        local = self.from_ecef_xyz(np.stack(broadcast_float64(x=x, y=y, z=z), axis=-1))
+        return local[..., 0], local[..., 1], local[..., 2]
 
     def to_ecef(self, e: ArrayLike, n: ArrayLike, u: ArrayLike) -> EcefCoords:
-        """Local ``(e, n, u)`` metres -> ECEF metres."""
-        enu = np.stack(broadcast_float64(e=e, n=n, u=u), axis=-1)
-        xyz = enu @ self.rotation + self.origin_ecef
+        """Local ``(X, Y, Z)`` metres (``(e, n, u)`` at azimuth 90) -> ECEF metres."""
+        xyz = self.to_ecef_xyz(np.stack(broadcast_float64(e=e, n=n, u=u), axis=-1))
         return EcefCoords(xyz[..., 0], xyz[..., 1], xyz[..., 2])
+
+    def from_ecef_xyz(self, xyz: ArrayLike) -> Float64Array:
+        """ECEF points stacked on the last axis, (*S, 3) metres -> local (*S, 3) metres."""
+        return (np.asarray(xyz, dtype=np.float64) - self.origin_ecef) @ self.rotation.T
+
+    def to_ecef_xyz(self, local: ArrayLike) -> Float64Array:
+        """Local points stacked on the last axis, (*S, 3) metres -> ECEF (*S, 3) metres."""
+        return np.asarray(local, dtype=np.float64) @ self.rotation + self.origin_ecef
 
     def from_geodetic(
         self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
     ) -> tuple[Float64Array, ...]:
-        """Geodetic ``(lon, lat, h)`` -> local ``(e, n, u)`` metres."""
+        """Geodetic ``(lon, lat, h)`` -> local ``(X, Y, Z)`` metres, each (*S,)."""
         return self.from_ecef(*geodetic_to_ecef(lon, lat, h))
 
     def to_geodetic(self, e: ArrayLike, n: ArrayLike, u: ArrayLike) -> GroundCoords:
-        """Local ``(e, n, u)`` metres -> geodetic ``(lon, lat, h)``."""
+        """Local ``(X, Y, Z)`` metres -> geodetic ``(lon, lat, h)``."""
         return ecef_to_geodetic(*self.to_ecef(e, n, u))
+
+    def to_dict(self) -> dict[str, float]:
+        """JSON-safe ``{"lon0", "lat0", "h0", "azimuth_deg"}``."""
+        return {"lon0": self.lon0, "lat0": self.lat0, "h0": self.h0,
+                "azimuth_deg": self.azimuth_deg}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> LocalFrame:
+        """Inverse of :meth:`to_dict` (``h0`` and ``azimuth_deg`` optional).
+
+        Raises
+        ------
+        CoordinateError
+            A key is missing or unknown, or a value is invalid.
+        """
+        unknown = sorted(set(data) - {"lon0", "lat0", "h0", "azimuth_deg"})
+        if unknown or "lon0" not in data or "lat0" not in data:
+            raise CoordinateError(
+                f"LocalFrame: a frame is {{lon0, lat0[, h0][, azimuth_deg]}}, got keys "
+                f"{sorted(data)}"
+            )
+        return cls(**data)
 
 
 def utm_crs(lon: ArrayLike, lat: ArrayLike) -> pyproj.CRS:
@@ -349,12 +430,14 @@ def utm_crs(lon: ArrayLike, lat: ArrayLike) -> pyproj.CRS:
     lon, lat = broadcast_float64(lon=lon, lat=lat)
     ok = np.isfinite(lon) & np.isfinite(lat)
     if not ok.any():
-        raise ValueError("utm_crs: no finite point given")
+        raise CoordinateError("utm_crs: no finite point given")
     lon_ok = np.unwrap(np.radians(lon[ok].ravel()))
     lon_c = (np.degrees((lon_ok.min() + lon_ok.max()) / 2.0) + 180.0) % 360.0 - 180.0
     lat_c = float((lat[ok].min() + lat[ok].max()) / 2.0)
     if not -80.0 <= lat_c <= 84.0:
-        raise ValueError(f"utm_crs: latitude {lat_c:.3f} is outside UTM's range [-80, 84]")
+        raise CoordinateError(
+            f"utm_crs: latitude {lat_c:.3f} is outside UTM's range [-80, 84]"
+        )
     zone = int((lon_c + 180.0) // 6.0) % 60 + 1
     if 56.0 <= lat_c < 64.0 and 3.0 <= lon_c < 12.0:
         zone = 32

@@ -8,12 +8,20 @@ the count (:class:`ConvergenceWarning`, :class:`OutOfBoundsWarning`, ...).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
 __all__ = [
     "AdjustmentError",
+    "BlockFileError",
     "ConvergenceWarning",
+    "CoordinateError",
     "CropError",
     "DemCoverageError",
     "DemError",
+    "DemoOutdirError",
     "DuplicateModelError",
     "EmptyOutputError",
     "EmptyOutputWarning",
@@ -22,14 +30,19 @@ __all__ = [
     "GeoblockIOError",
     "GeoblockWarning",
     "GridError",
+    "InputFileError",
+    "InputTypeError",
     "MetadataFieldError",
     "ModelFormatError",
+    "MosaicError",
     "NoIntersectionWarning",
     "ObservationError",
     "OutOfBoundsWarning",
     "ParameterSetError",
     "PluginError",
     "PluginWarning",
+    "PointFileError",
+    "ScenarioError",
     "SerializationError",
     "ShapeMismatchError",
     "SingularSystemError",
@@ -65,6 +78,12 @@ class ShapeMismatchError(GeoblockError, ValueError):
     """Coordinate arrays do not broadcast together (the message names them and their shapes)."""
 
 
+class CoordinateError(GeoblockError, ValueError):
+    """A coordinate frame or a set of points is unusable: a non-finite origin, a latitude
+    beyond +-90 degrees, no finite point to centre a frame on, a latitude outside UTM's range
+    (the message names the argument and its value)."""
+
+
 class CropError(GeoblockError, ValueError):
     """An image and a model do not fit: shapes differ with no crop offset, or the crop does not
     lie inside the model's scene (the message gives both shapes and what to pass)."""
@@ -81,7 +100,16 @@ class UnsupportedFormatError(GeoblockError, ValueError):
     """No reader or writer recognised a file; the message names the file and the plugins asked."""
 
 
-class ModelFormatError(GeoblockError, ValueError):
+class InputFileError(GeoblockError, ValueError):
+    """A file given as input is readable but its content is invalid.
+
+    The message names the file and the field (or line and column). The subclasses say which
+    kind of file: :class:`ModelFormatError` (sensor-model metadata), :class:`PointFileError`,
+    :class:`BlockFileError`. A file that cannot be read at all is a :class:`GeoblockIOError`.
+    """
+
+
+class ModelFormatError(InputFileError):
     """A reader recognised a file but its content is invalid (names the file and field)."""
 
 
@@ -105,6 +133,18 @@ class MetadataFieldError(ModelFormatError):
         self.source = str(source)
         self.field = field
         self.problem = problem
+
+
+class PointFileError(InputFileError):
+    """A point file (CSV) is malformed (names the file, line and column).
+
+    Raised by :func:`geoblock.io.read_points` and :func:`geoblock.io.points.read_observations`.
+    """
+
+
+class BlockFileError(InputFileError):
+    """A block file (TOML) is malformed or names something unusable (names the file and the
+    field); raised by :func:`geoblock.io.read_block` and :func:`geoblock.io.open_block`."""
 
 
 class SerializationError(GeoblockError, ValueError):
@@ -134,6 +174,41 @@ class GridError(GeoblockError, ValueError):
     def __init__(self, message: str, parameter: str | None = None):
         super().__init__(message)
         self.parameter = parameter
+
+
+class InputTypeError(GeoblockError, TypeError):
+    """An engine or ``open_*`` function was given an object it cannot use.
+
+    The message says what was received (its type) and what is accepted, e.g. for a DEM: a
+    path, a ``DemSource``, an open rasterio dataset, a georeferenced ``xarray.DataArray``, or
+    a numpy array with its ``transform`` and ``crs``.
+    """
+
+
+class MosaicError(GeoblockError, ValueError):
+    """Sources that cannot be mosaicked without resampling (CRS, resolution, pixel phase,
+    bands) or invalid mosaic arguments."""
+
+
+class ScenarioError(GeoblockError, ValueError):
+    """A simulation scenario (a TOML file, a preset name or variant, or a scenario mapping) is
+    invalid; the message names the file (or preset) and the key, e.g.
+    ``my.toml: points.gcp: must be an integer, got a number 2.5``."""
+
+
+class DemoOutdirError(GeoblockError):
+    """The output directory of ``geoblock demo`` exists and is not a previous demo output (or
+    is not a directory); raised before anything is written.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The directory refused.
+    """
+
+    def __init__(self, message: str, path: Path) -> None:
+        super().__init__(message)
+        self.path = path
 
 
 class EmptyOutputError(GeoblockError, RuntimeError):

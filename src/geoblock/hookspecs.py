@@ -36,7 +36,7 @@ hookimpl = pluggy.HookimplMarker("geoblock")
 
 
 @hookspec
-def geoblock_register_sensor_models(register: Callable[[type], None]) -> None:
+def geoblock_register_sensor_models(register: Callable[[type[SensorModel]], None]) -> None:
     """Register sensor-model classes: call ``register(cls)`` once per class.
 
     ``cls.name`` (lowercase-kebab, ``^[a-z][a-z0-9-]*$``) becomes the registry key and the

@@ -6,6 +6,12 @@
   and everything else keeps working.
 * ``GEOBLOCK_PLUGINS=a,b`` loads only the entry points named ``a`` and ``b`` (an empty value
   loads none); built-ins always load.
+* ``GEOBLOCK_PLUGIN_MODULES=pkg.mod,other.mod`` also loads those modules as plugins, without
+  an entry point (like pytest's ``-p``): a plugin under development, or geoblock's synthetic
+  test models (``geoblock.testing.plugin``). Each is imported in its own ``try`` like an entry
+  point, registered under its module name, and listed by ``geoblock plugins``;
+  ``GEOBLOCK_PLUGINS`` does not restrict them. In Python, :func:`enable_plugin_module` does the
+  same for the rest of the process.
 * ``GEOBLOCK_TRACE_PLUGINS=1`` prints every hook call to standard error.
 * Factory hooks (``firstresult``: reading and writing models) are called through
   :func:`call_firstresult`, one implementation at a time: an implementation that raises
@@ -26,30 +32,44 @@ import importlib.metadata
 import os
 import sys
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pluggy
 
 from geoblock import hookspecs
-from geoblock.errors import GeoblockError, PluginWarning
+from geoblock.errors import GeoblockError, PluginError, PluginWarning
+
+if TYPE_CHECKING:
+    from geoblock.models.protocol import SensorModel
+    from geoblock.models.registry import ModelRegistry
 
 __all__ = [
     "DEFAULT_PLUGINS",
     "ENTRY_POINT_GROUP",
     "GeoblockPluginManager",
     "HookFailure",
+    "PLUGIN_MODULES_VARIABLE",
     "PluginInfo",
     "call_firstresult",
     "create_plugin_manager",
+    "disable_plugin_module",
+    "enable_plugin_module",
+    "from_dict",
     "get_plugin_manager",
+    "get_registry",
     "list_plugins",
+    "plugin_modules",
     "refresh_plugins",
 ]
 
 ENTRY_POINT_GROUP = "geoblock"
 DEFAULT_PLUGINS: tuple[str, ...] = ("geoblock._default_plugin",)
+#: The environment variable naming extra plugin modules (comma-separated).
+PLUGIN_MODULES_VARIABLE = "GEOBLOCK_PLUGIN_MODULES"
+#: Modules enabled in this process by :func:`enable_plugin_module`, in order.
+_enabled_modules: list[str] = []
 
 
 class GeoblockPluginManager(pluggy.PluginManager):
@@ -166,12 +186,64 @@ def _allowed_entry_points() -> set[str] | None:
     return {v.strip() for v in value.split(",") if v.strip()}
 
 
+def plugin_modules() -> tuple[str, ...]:
+    """The extra plugin modules a new plugin manager loads.
+
+    Those named in ``GEOBLOCK_PLUGIN_MODULES`` (comma-separated), then those enabled by
+    :func:`enable_plugin_module`, each once.
+    """
+    named = os.environ.get(PLUGIN_MODULES_VARIABLE, "").split(",")
+    return tuple(dict.fromkeys(m for m in (n.strip() for n in named + _enabled_modules) if m))
+
+
+def enable_plugin_module(module_name: str) -> None:
+    """Load the module ``module_name`` as a plugin in this process from now on.
+
+    The module (hook implementations at its top level, as an entry point's) is imported now, so
+    that a mistake fails here; the cached plugin manager and model registry are refreshed, and
+    every manager built later (after :func:`refresh_plugins` too) registers it. Enabling a
+    module twice does nothing. Subprocesses do not inherit this: give them
+    ``GEOBLOCK_PLUGIN_MODULES`` instead.
+
+    Parameters
+    ----------
+    module_name : str
+        An importable module, e.g. ``"geoblock.testing.plugin"``.
+
+    Raises
+    ------
+    PluginError
+        The module cannot be imported (the message gives the reason).
+    """
+    try:
+        importlib.import_module(module_name)
+    except Exception as exc:  # any failure of the module's code
+        raise PluginError(
+            f"geoblock plugin module {module_name!r} cannot be imported: "
+            f"{type(exc).__name__}: {exc}",
+            module_name,
+        ) from exc
+    if module_name not in _enabled_modules:
+        _enabled_modules.append(module_name)
+        refresh_plugins()
+
+
+def disable_plugin_module(module_name: str) -> None:
+    """Stop loading a module enabled by :func:`enable_plugin_module` (refreshes the cached
+    manager; a module named in ``GEOBLOCK_PLUGIN_MODULES`` still loads)."""
+    if module_name in _enabled_modules:
+        _enabled_modules.remove(module_name)
+        refresh_plugins()
+
+
 def create_plugin_manager(
     *,
     entry_points: bool = True,
     plugins: Iterable[object] = (),
+    modules: Iterable[str] | None = None,
 ) -> GeoblockPluginManager:
-    """A new plugin manager with the built-ins, the entry points (optional) and ``plugins``.
+    """A new plugin manager with the built-ins, the entry points (optional), the extra plugin
+    modules and ``plugins``.
 
     Parameters
     ----------
@@ -180,6 +252,10 @@ def create_plugin_manager(
     plugins : iterable
         Extra plugin objects (modules or instances with hook implementations), for tests and
         embedding.
+    modules : iterable of str, optional
+        Plugin modules to import and register by name; by default :func:`plugin_modules`
+        (``GEOBLOCK_PLUGIN_MODULES`` and :func:`enable_plugin_module`'s), loaded whatever
+        ``entry_points`` says. ``()`` loads none.
     """
     pm = GeoblockPluginManager()
     for module_name in DEFAULT_PLUGINS:
@@ -187,6 +263,8 @@ def create_plugin_manager(
         pm.distributions[module_name] = ("geoblock", _version("geoblock"))
     if entry_points:
         _load_entry_points(pm)
+    for module_name in plugin_modules() if modules is None else modules:
+        _load_module(pm, module_name)
     for plugin in plugins:
         _register_guarded(pm, plugin, getattr(plugin, "__name__", None), None)
     _check_pending(pm)
@@ -232,7 +310,53 @@ def _load_entry_points(pm: GeoblockPluginManager) -> None:
         _register_guarded(pm, module, ep.name, (dist, version))
 
 
-def _register_guarded(pm, plugin, name, dist_version) -> None:
+def _load_module(pm: GeoblockPluginManager, module_name: str) -> None:
+    """Import and register a plugin module by name; a failure is a warning, not an error."""
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # any failure of third-party code must not break geoblock
+        warnings.warn(
+            f"geoblock plugin module {module_name!r} (from {PLUGIN_MODULES_VARIABLE} or "
+            f"enable_plugin_module) failed to import and was skipped: "
+            f"{type(exc).__name__}: {exc}",
+            PluginWarning,
+            stacklevel=3,
+        )
+        return
+    if pm.is_registered(module):  # already loaded as a built-in or an entry point
+        return
+    _register_guarded(pm, module, module_name, _module_distribution(module_name))
+
+
+def _module_distribution(module_name: str) -> tuple[str | None, str | None]:
+    """``(distribution, version)`` installing the top-level package of ``module_name``:
+    the distribution of the package's name (editable installs list no files), else the one
+    whose files hold the package, else ``(None, None)`` (a module on ``sys.path``)."""
+    top = module_name.partition(".")[0]
+    try:
+        dist = importlib.metadata.distribution(top)
+        return dist.metadata["Name"], dist.version
+    except importlib.metadata.PackageNotFoundError:
+        pass
+    dists = _packages_distributions().get(top, [])
+    if len(dists) != 1:  # not installed, or ambiguous
+        return None, None
+    return dists[0], _version(dists[0])
+
+
+@functools.lru_cache(maxsize=1)
+def _packages_distributions() -> Mapping[str, list[str]]:
+    """:func:`importlib.metadata.packages_distributions`, cached (it reads every installed
+    distribution's file list); :func:`refresh_plugins` forgets it."""
+    return importlib.metadata.packages_distributions()
+
+
+def _register_guarded(
+    pm: GeoblockPluginManager,
+    plugin: object,
+    name: str | None,
+    dist_version: tuple[str | None, str | None] | None,
+) -> None:
     try:
         registered = pm.register(plugin, name=name)
     except Exception as exc:  # pluggy.PluginValidationError, ValueError for duplicates
@@ -268,12 +392,33 @@ def get_plugin_manager() -> GeoblockPluginManager:
     return create_plugin_manager()
 
 
+@functools.lru_cache(maxsize=1)
+def get_registry() -> ModelRegistry:
+    """The model registry of the process-wide plugin manager (cached; see
+    :func:`refresh_plugins`)."""
+    from geoblock.models.registry import build_registry
+
+    return build_registry(get_plugin_manager())
+
+
+def from_dict(data: Mapping[str, Any]) -> SensorModel:
+    """Rebuild any registered sensor model from its ``to_dict()`` output.
+
+    Raises
+    ------
+    UnknownModelError
+        The ``model`` name is not registered (the message lists the registered names).
+    SerializationError
+        The dictionary is not a valid model of that name.
+    """
+    return get_registry().from_dict(data)
+
+
 def refresh_plugins() -> None:
     """Forget the cached plugin manager and model registry; the next use reloads them."""
-    from geoblock.models import registry as _registry
-
     get_plugin_manager.cache_clear()
-    _registry.get_registry.cache_clear()
+    get_registry.cache_clear()
+    _packages_distributions.cache_clear()
 
 
 def plugin_distribution(pm: pluggy.PluginManager, name: str) -> tuple[str | None, str | None]:
@@ -283,7 +428,7 @@ def plugin_distribution(pm: pluggy.PluginManager, name: str) -> tuple[str | None
 
 def list_plugins(pm: pluggy.PluginManager | None = None) -> list[PluginInfo]:
     """Every loaded plugin with its distribution, version, hooks and registered models."""
-    from geoblock.models.registry import build_registry, get_registry
+    from geoblock.models.registry import build_registry
 
     if pm is None:
         pm = get_plugin_manager()

@@ -23,15 +23,28 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "ArrayLike",
+    "BoolArray",
     "EcefCoords",
     "Float64Array",
     "GroundCoords",
     "ImageCoords",
+    "IndexArray",
     "LineOfSight",
     "Status",
+    "StatusArray",
+    "StrArray",
 ]
 
 Float64Array = NDArray[np.float64]
+"""A float64 array: coordinates, residuals, sigmas, partials."""
+BoolArray = NDArray[np.bool_]
+"""A boolean array: masks and flags."""
+IndexArray = NDArray[np.intp]
+"""An integer index array (``np.intp``): positions into another array."""
+StrArray = NDArray[np.str_]
+"""A unicode string array: point ids, image ids, point kinds."""
+StatusArray = NDArray[np.uint8]
+"""A per-point :class:`Status` array, stored as ``uint8``."""
 
 
 class ImageCoords(NamedTuple):

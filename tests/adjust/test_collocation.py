@@ -28,10 +28,11 @@ from geoblock.errors import (
     TooFewPointsError,
 )
 from geoblock.models import get_registry
+from geoblock.models.linescan import LinescanModel
 from geoblock.models.registry import from_dict
 from geoblock.ortho import OutputGrid, source_coordinates
 from geoblock.testing.contract import SensorModelContract
-from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
+from geoblock.testing.synthetic import ConstantVelocityPushbroom
 
 SIZE = 1000.0
 
@@ -345,7 +346,7 @@ def test_serialisation_pickle_registry(corrected):
     assert pickle.loads(pickle.dumps(corrected)) == corrected
     assert from_dict(json.loads(text)) == corrected
     assert get_registry().get("collocation") is CollocationCorrection
-    assert type(from_dict(data).model) is AffineCamera
+    assert type(from_dict(data).model) is LinescanModel  # the base model is rebuilt too
 
 
 def test_no_parameters(corrected):

@@ -20,7 +20,8 @@ import geoblock
 from geoblock.adjust import Block, ControlPoints, GroundPoints, ImagePoints, adjust, resect
 from geoblock.adjust.statistics import ictp_accuracy
 from geoblock.io import read_points
-from geoblock.simulate.scenario import preset_dict, run_scenario, scenario_from_dict
+from geoblock.simulate.scenario import preset_dict, scenario_from_dict
+from geoblock.workflows import run_scenario
 
 fit_module = pytest.importorskip("geoblock_rpc.fit")
 rpc_module = pytest.importorskip("geoblock_rpc.model")

@@ -10,7 +10,8 @@ import pytest
 
 import geoblock
 from geoblock.io import read_points, write_points
-from geoblock.simulate.scenario import preset_dict, run_scenario, scenario_from_dict
+from geoblock.simulate.scenario import preset_dict, scenario_from_dict
+from geoblock.workflows import run_scenario
 
 
 @pytest.fixture(scope="module")

@@ -6,12 +6,8 @@ import numpy as np
 import pytest
 import rasterio
 
-from geoblock.simulate.demo import (
-    DEMO_MARKER,
-    DemoOutdirError,
-    is_demo_outdir,
-    prepare_demo_outdir,
-)
+from geoblock.errors import DemoOutdirError
+from geoblock.workflows.demo import DEMO_MARKER, is_demo_outdir, prepare_demo_outdir
 
 
 def test_demo_tiny(runner, cli, tmp_path, monkeypatch):

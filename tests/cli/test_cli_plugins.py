@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import click
 import pytest
@@ -16,6 +19,7 @@ def test_plugins_table(runner, cli):
     result = runner.invoke(cli, ["plugins"])
     assert result.exit_code == 0, result.output
     assert "geoblock._default_plugin" in result.stdout
+    assert "geoblock.testing.plugin" in result.stdout  # enabled for geoblock's tests
     assert "synthetic-affine" in result.stdout
     assert "image-correction" in result.stdout
     assert "register_sensor_models" in result.stdout
@@ -30,11 +34,41 @@ def test_plugins_json(runner, cli):
     assert default["distribution"] == "geoblock"
     assert default["version"] == geoblock.__version__
     assert "geoblock_register_sensor_models" in default["hooks"]
-    assert {"synthetic-affine", "image-correction"} <= set(default["models"])
+    assert {"image-correction", "linescan"} <= set(default["models"])
+    assert not {"synthetic-affine", "synthetic-pushbroom"} & set(default["models"])
     assert default["error"] is None
+    testing = by_name["geoblock.testing.plugin"]  # the opt-in test models, enabled in tests
+    assert (testing["distribution"], testing["version"]) == ("geoblock", geoblock.__version__)
+    assert testing["models"] == ["synthetic-affine", "synthetic-pushbroom"]
     models = {m["name"]: m["plugin"] for m in report["models"]}
-    assert models["synthetic-affine"] == "geoblock._default_plugin"
+    assert models["synthetic-affine"] == "geoblock.testing.plugin"
     assert models["image-correction"] == "geoblock._default_plugin"
+
+
+def _plugins_json_in_a_new_process(**environ: str) -> dict:
+    env = {k: v for k, v in os.environ.items() if k != "GEOBLOCK_PLUGIN_MODULES"}
+    out = subprocess.run(
+        [sys.executable, "-m", "geoblock.cli", "plugins", "--json"],
+        capture_output=True, text=True, check=True, env={**env, **environ},
+    )
+    return json.loads(out.stdout)
+
+
+def test_a_users_geoblock_plugins_lists_no_test_models():
+    report = _plugins_json_in_a_new_process()
+    models = {m["name"] for m in report["models"]}
+    assert {"image-correction", "linescan"} <= models
+    assert not {"synthetic-affine", "synthetic-pushbroom"} & models
+    assert "geoblock.testing.plugin" not in {p["name"] for p in report["plugins"]}
+
+
+def test_geoblock_plugin_modules_loads_the_test_models_in_a_new_process():
+    report = _plugins_json_in_a_new_process(GEOBLOCK_PLUGIN_MODULES="geoblock.testing.plugin")
+    models = {m["name"]: m["plugin"] for m in report["models"]}
+    assert models["synthetic-affine"] == models["synthetic-pushbroom"] == "geoblock.testing.plugin"
+    plugin = {p["name"]: p for p in report["plugins"]}["geoblock.testing.plugin"]
+    assert plugin["distribution"] == "geoblock"
+    assert plugin["hooks"] == ["geoblock_register_sensor_models"]
 
 
 class _Hello:
@@ -146,7 +180,8 @@ def test_default_cli_uses_the_patched_plugin_manager(runner, monkeypatch):
 @pytest.mark.parametrize("args", [["plugins"], ["plugins", "--json"]])
 def test_plugins_without_models(runner, args, monkeypatch):
     monkeypatch.setattr("geoblock.plugins.DEFAULT_PLUGINS", ())
-    result = runner.invoke(_cli(_Hello()), args)
+    cli = build_cli(create_plugin_manager(entry_points=False, plugins=[_Hello()], modules=()))
+    result = runner.invoke(cli, args)
     assert result.exit_code == 0, result.output
     if "--json" in args:
         assert json.loads(result.stdout)["models"] == []

@@ -239,7 +239,8 @@ def test_unknown_model_name_in_json_is_named_with_the_file(tmp_path, model_path,
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
     """A small simulated SPOT-1 block (``geoblock simulate``'s files)."""
-    from geoblock.simulate.scenario import preset_dict, run_scenario, scenario_from_dict
+    from geoblock.simulate.scenario import preset_dict, scenario_from_dict
+    from geoblock.workflows import run_scenario
 
     out = tmp_path_factory.mktemp("sim")
     with warnings.catch_warnings():

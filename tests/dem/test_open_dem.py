@@ -10,7 +10,7 @@ from affine import Affine
 
 import geoblock
 from geoblock.dem import ConstantDem, ConstantGeoidDem, DemSource, MosaicDem, RasterDem
-from geoblock.errors import DemError, GeoblockError
+from geoblock.errors import DemError, GeoblockError, InputTypeError
 
 from .conftest import write_tif
 
@@ -73,7 +73,7 @@ def test_errors(tmp_path):
         geoblock.open_dem([])
     with pytest.raises(DemError, match="kind"):
         geoblock.open_dem({"dem": "weird"})
-    with pytest.raises(DemError):
+    with pytest.raises(InputTypeError, match="cannot use an object of type int as a DEM"):
         geoblock.open_dem(42)
     p = write_tif(tmp_path / "x.tif", np.zeros((3, 3), np.float32),
                   Affine(1, 0, 0, 0, -1, 3), "EPSG:32631")

@@ -8,8 +8,10 @@ import rasterio
 from affine import Affine
 
 from geoblock.dem import raster as raster_mod
+from geoblock.dem._reference import pixel_coords_reference, sample_reference
 from geoblock.dem.raster import BLOCK_CACHE, RasterDem
 from geoblock.ortho import lattice
+from geoblock.pixels import pixel_to_map
 
 
 def _write(path, data, transform, crs="EPSG:4979", nodata=None):
@@ -49,7 +51,7 @@ def _points(dem, n, seed):
     # points exactly on pixel centres / edges
     row = rng.integers(0, dem.shape[0], 50) + 0.0
     col = rng.integers(0, dem.shape[1], 50) + 0.0
-    x, y = raster_mod.affine_apply(dem.transform, col + 0.5, row + 0.5)
+    x, y = pixel_to_map(dem.transform, row, col)
     if dem._lonlat:
         lon[5:55], lat[5:55] = x, y
     return lon, lat
@@ -65,11 +67,11 @@ def test_sample_matches_reference(dem_files, name, interpolation, nodata):
                     fill_distance=20, vertical="ellipsoid")
     lon, lat = _points(dem, 20000, 3)
     fast, out_fast = dem._sample(lon, lat)
-    ref, out_ref = dem._sample_reference(lon, lat)
+    ref, out_ref = sample_reference(dem, lon, lat)
     np.testing.assert_array_equal(out_fast, out_ref)
     assert np.array_equal(fast, ref, equal_nan=True)
     r1, c1 = dem.pixel_coords(lon, lat)
-    r2, c2 = dem._pixel_coords_reference(lon, lat)
+    r2, c2 = pixel_coords_reference(dem, lon, lat)
     assert np.array_equal(r1, r2, equal_nan=True) and np.array_equal(c1, c2, equal_nan=True)
 
 
@@ -79,7 +81,7 @@ def _cluster(dem, n, seed, centre, spread_px):
     rng = np.random.default_rng(seed)
     r = centre[0] * dem.shape[0] + rng.uniform(-spread_px, spread_px, n)
     c = centre[1] * dem.shape[1] + rng.uniform(-spread_px, spread_px, n)
-    x, y = raster_mod.affine_apply(dem.transform, c + 0.5, r + 0.5)
+    x, y = pixel_to_map(dem.transform, r, c)
     if not dem._lonlat:
         from geoblock import coords
 
@@ -102,7 +104,7 @@ def test_window_path_matches_reference(dem_files, name, interpolation, centre, m
                         lambda *a: taken.append(a[8].shape) or real(*a))
     fast, out_fast = dem._sample(lon, lat)
     assert taken, "the window path was not taken"
-    ref, out_ref = dem._sample_reference(lon, lat)
+    ref, out_ref = sample_reference(dem, lon, lat)
     np.testing.assert_array_equal(out_fast, out_ref)
     assert np.array_equal(fast, ref, equal_nan=True)
     if name == "big" and centre == (0.22, 0.49):  # assembled from four 512-post blocks

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from geoblock.dem.sampling import sample, sample_reference
+from geoblock.dem._reference import sample_array_reference
+from geoblock.dem.sampling import sample
 
 
 @pytest.mark.parametrize(("interpolation", "n"), [("bilinear", 2), ("bicubic", 4)])
@@ -15,7 +16,7 @@ def test_compiled_sampling_equals_the_numpy_reference(interpolation, n):
     col = rng.uniform(-3.0, 73.0, 20000)
     row[:5] = np.nan
     fast = sample(array, row, col, interpolation)
-    ref = sample_reference(array, row, col, n)
+    ref = sample_array_reference(array, row, col, n)
     assert np.array_equal(np.isnan(fast), np.isnan(ref))
     ok = ~np.isnan(ref)
     assert ok.sum() > 15000

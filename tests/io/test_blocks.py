@@ -6,10 +6,12 @@ import math
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from geoblock import errors
 from geoblock.errors import GeoblockIOError
 from geoblock.io import Block, BlockDem, BlockImage, read_block, write_block
 from geoblock.io.blocks import BlockFileError, dumps_toml
@@ -136,6 +138,18 @@ def test_invalid_block_files_name_the_field(tmp_path, text, message):
     assert str(path) in str(info.value)
 
 
+def test_block_and_point_file_errors_are_input_file_errors_not_model_errors():
+    from geoblock.io import blocks, points
+
+    assert blocks.BlockFileError is errors.BlockFileError  # the old import path still works
+    assert points.PointFileError is errors.PointFileError
+    for cls in (errors.BlockFileError, errors.PointFileError, errors.ModelFormatError):
+        assert issubclass(cls, errors.InputFileError)
+        assert issubclass(cls, ValueError) and issubclass(cls, errors.GeoblockError)
+    for cls in (errors.BlockFileError, errors.PointFileError):
+        assert not issubclass(cls, errors.ModelFormatError)  # a block or point file is no model
+
+
 def test_missing_file_and_directory(tmp_path):
     with pytest.raises(GeoblockIOError, match="cannot read block file"):
         read_block(tmp_path / "nope.toml")
@@ -158,6 +172,61 @@ documents = st.dictionaries(keys, values | st.lists(st.dictionaries(keys, values
 @given(documents)
 def test_dumps_toml_round_trips_through_tomllib(doc):
     assert tomllib.loads(dumps_toml(doc)) == doc
+
+
+def test_written_block_file_reads_top_down(tmp_path):
+    """The layout a user edits: the block's own keys, then one section per table, the images
+    last as [[images]] sections (their sigmas a sub-table); a table appended after the keys
+    (here [options], by a text edit) does not swallow anything."""
+    block = Block(
+        (BlockImage("strip1", tmp_path / "strip1.json", tmp_path / "strip1.tif"),
+         BlockImage("strip2", tmp_path / "m" / "strip2.json", parameters="dg",
+                    sigmas={"roll_bias": 1e-5})),
+        "dg", tmp_path / "ground.csv", tmp_path / "image.csv", dem=BlockDem("const:250", sigma=5.0),
+        outputs={"directory": tmp_path / "out"}, name="two strips",
+    )
+    path = write_block(tmp_path / "block.toml", block)
+    assert path.read_text() == """\
+# geoblock block file (docs: user-guide/simulation.md)
+version = 1
+name = "two strips"
+method = "dg"
+
+[points]
+ground = "ground.csv"
+image = "image.csv"
+
+[dem]
+path = "const:250"
+sigma = 5.0
+
+[outputs]
+directory = "out"
+
+[[images]]
+id = "strip1"
+model = "strip1.json"
+raster = "strip1.tif"
+
+[[images]]
+id = "strip2"
+model = "m/strip2.json"
+parameters = "dg"
+
+[images.sigmas]
+roll_bias = 1e-05
+"""
+    edited = 'method = "dg"\n[options]\nrobust = "huber"\n'
+    path.write_text(path.read_text().replace('method = "dg"\n', edited))
+    assert read_block(path).options == {"robust": "huber"}
+    assert [im.id for im in read_block(path).images] == ["strip1", "strip2"]
+
+
+def test_dumps_toml_refuses_what_toml_cannot_hold():
+    with pytest.raises(BlockFileError, match=r"images\.0\.raster: cannot write a complex"):
+        dumps_toml({"images": [{"raster": 1j}]})
+    assert tomllib.loads(dumps_toml({"p": Path("a/b"), "t": (1, 2), "np": np.float64(0.25)})) == {
+        "p": "a/b", "t": [1, 2], "np": 0.25}
 
 
 def test_dumps_toml_non_finite_floats():

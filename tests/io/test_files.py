@@ -69,3 +69,40 @@ def test_atomic_directory_and_figures(tmp_path):
         plt.close(fig)
         files.make_directory(tmp / "models")
     assert (out / "f.png").read_bytes()[:4] == b"\x89PNG" and (out / "models").is_dir()
+
+
+def test_remove_files_links_and_trees_but_not_link_targets(tmp_path):
+    target = tmp_path / "target"
+    target.mkdir()
+    (target / "keep.txt").write_text("x")
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    tree = tmp_path / "tree" / "sub"
+    tree.mkdir(parents=True)
+    (tree / "f").write_text("y")
+    files.remove(link)
+    files.remove(tmp_path / "tree")
+    files.remove(tmp_path / "absent")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["target"]
+    assert (target / "keep.txt").read_text() == "x"
+
+
+def test_staged_files_write_all_or_nothing(tmp_path):
+    old = tmp_path / "a.txt"
+    old.write_text("old")
+    with files.staged_files([old, tmp_path / "b.txt"]) as (sa, sb):
+        assert sa.read_text() == "old"  # an existing destination is staged for in-place edits
+        sa.write_text("new")
+        sb.write_text("b")
+        (sb.parent / "b.txt.aux.xml").write_text("<x/>")  # a writer's sidecar follows its file
+    assert old.read_text() == "new" and (tmp_path / "b.txt").read_text() == "b"
+    assert (tmp_path / "b.txt.aux.xml").exists()
+    with pytest.raises(RuntimeError):
+        with files.staged_files([old, tmp_path / "c.txt"]) as (sa, sc):
+            sa.write_text("newer")
+            raise RuntimeError("second writer failed")
+    assert old.read_text() == "new" and not (tmp_path / "c.txt").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "b.txt.aux.xml"]
+    with pytest.raises(GeoblockIOError, match="does not exist"):
+        with files.staged_files([tmp_path / "nodir" / "x.txt"]):
+            pass

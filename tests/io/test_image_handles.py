@@ -1,5 +1,5 @@
 """Source images read through one dataset per file and thread
-(:func:`geoblock._rasterio.cached_dataset`, shared with the DEM), and their georeferencing
+(:func:`geoblock.io.rasters.cached_dataset`, shared with the DEM), and their georeferencing
 read once by :func:`geoblock.io.images.open_image`."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import pytest
 import rasterio
 from dask.base import tokenize
 
-from geoblock._rasterio import cached_dataset
 from geoblock.errors import GeoblockIOError
 from geoblock.io.images import open_image, write_ortho
+from geoblock.io.rasters import cached_dataset
 from geoblock.ortho.mosaic import open_ortho
 
 
@@ -90,7 +90,7 @@ def test_write_ortho_missing_directory(tmp_path):
 
 
 def test_handles_per_thread_are_bounded(tmp_path, monkeypatch):
-    import geoblock._rasterio as r
+    import geoblock.io.rasters as r
 
     monkeypatch.setattr(r, "MAX_HANDLES_PER_THREAD", 3)
     paths = [_write(tmp_path / f"{i}.tif", i) for i in range(5)]

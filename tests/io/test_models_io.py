@@ -117,3 +117,21 @@ def test_a_model_json_refused_by_its_model_names_the_file(tmp_path):
     path.write_text(json.dumps(data))
     with pytest.raises(ModelFormatError, match="bad-collocation.json"):
         geoblock.open_model(path)
+
+
+def test_model_json_is_sniffed_by_geoblock_io(tmp_path, affine_camera):
+    """The built-in plugin reads and writes model JSON through geoblock.io.models; anything
+    that is not model JSON is left to the other readers (None), not an error."""
+    from geoblock.io.models import read_model_json, write_model_json
+
+    path = write_model_json(affine_camera, tmp_path / "m.JSON")
+    assert path.read_text().endswith("}\n")
+    assert read_model_json(path) == json.loads(path.read_text()) == affine_camera.to_dict()
+    (tmp_path / "m.txt").write_text(path.read_text())
+    (tmp_path / "list.json").write_text("[1, 2]")
+    (tmp_path / "other.json").write_text('{"model": "x"}')  # no schema_version
+    (tmp_path / "latin1.json").write_bytes('{"model": "caf\xe9"}'.encode("latin-1"))
+    (tmp_path / "broken.json").write_text('{"model": ')
+    (tmp_path / "dir.json").mkdir()
+    for name in ("m.txt", "list.json", "other.json", "latin1.json", "broken.json", "dir.json"):
+        assert read_model_json(tmp_path / name) is None, name

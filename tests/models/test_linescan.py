@@ -228,13 +228,35 @@ def test_look_directions_interpolate_and_invert():
     np.testing.assert_allclose(np.linalg.norm(look.at([-3.0, 0.3, 1.7, 5.0]), axis=-1), 1.0)
     cols = np.array([-2.0, -0.5, 0.0, 0.4, 1.0, 1.6, 2.5, 4.0])
     v = look.at(cols)
-    col, tan_x, _ = look._invert(v[:, 1] / v[:, 2])
+    col, tan_x, _ = look.invert(v[:, 1] / v[:, 2])
     np.testing.assert_allclose(col, cols, atol=1e-12)
     np.testing.assert_allclose(tan_x, v[:, 0] / v[:, 2], atol=1e-15)
     # a decreasing table works too
     flipped = LookDirections(look.vectors[::-1])
-    col, _, _ = flipped._invert(v[:, 1] / v[:, 2])
+    col, _, _ = flipped.invert(v[:, 1] / v[:, 2])
     np.testing.assert_allclose(col, 2.0 - cols, atol=1e-12)
+    # the derivatives of the tangents in col are those of the interpolation
+    _, _, dtan = look.invert(np.array([-0.05, 0.1]))
+    step = 1e-6
+    for k, c in enumerate(look.invert(np.array([-0.05, 0.1]))[0]):
+        a, b = look.at(c - step), look.at(c + step)
+        numeric = [(b[i] / b[2] - a[i] / a[2]) / (2 * step) for i in (0, 1)]
+        np.testing.assert_allclose(dtan[k], numeric, rtol=1e-6)
+    with pytest.raises(GeoblockError, match=r"tan_x \(3,\) and tan_y \(2,\)"):
+        LookDirections.from_tan_angles([0.0, 0.0, 0.0], [0.1, 0.2])
+
+
+def test_the_building_blocks_are_modules_of_the_package_and_reexported():
+    import geoblock.models.linescan as ls
+    from geoblock.models.linescan import attitude, ephemeris, line_times, look, model, rotations
+
+    assert ls.Ephemeris is ephemeris.Ephemeris and ls.ORBIT_RADIUS_M is ephemeris.ORBIT_RADIUS_M
+    assert ls.Attitude is attitude.Attitude and ls.LookDirections is look.LookDirections
+    assert ls.LineTimes is line_times.LineTimes and ls.LinescanModel is model.LinescanModel
+    assert ls.dg_parameters is model.dg_parameters
+    assert ls.quaternion_to_matrix is rotations.quaternion_to_matrix
+    assert sorted(ls.__all__) == sorted(n for n in ls.__all__ if hasattr(ls, n))
+    assert LinescanModel.__module__ == "geoblock.models.linescan.model"
 
 
 def test_line_times():

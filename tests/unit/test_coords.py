@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoblock import coords
-from geoblock.errors import ShapeMismatchError
+from geoblock.errors import CoordinateError, GeoblockError, ShapeMismatchError
 
 
 def _pyproj_ecef(lon, lat, h):
@@ -126,8 +126,65 @@ def test_local_frame_centred_on_points():
     frame = coords.LocalFrame.centred_on([7.0, 7.2], [43.6, 43.8], [100.0, 300.0])
     assert abs(frame.lon0 - 7.1) < 1e-3 and abs(frame.lat0 - 43.7) < 1e-3
     assert frame.h0 == 200.0
-    with pytest.raises(ValueError, match="finite"):
+    with pytest.raises(CoordinateError, match="finite"):
         coords.LocalFrame.centred_on(np.nan, 0.0, 0.0)
+    turned = coords.LocalFrame.centred_on([7.0, 7.2], [43.6, 43.8], [100.0, 300.0], 200.0)
+    assert (turned.lon0, turned.lat0, turned.h0) == (frame.lon0, frame.lat0, frame.h0)
+    assert turned.azimuth_deg == 200.0
+
+
+def test_local_frame_default_axes_are_east_north_up_exactly():
+    frame = coords.LocalFrame(10.0, 45.0, 100.0)
+    assert frame.azimuth_deg == 90.0
+    np.testing.assert_array_equal(frame.rotation, coords.enu_rotation(10.0, 45.0))
+    e, n, u = frame.from_geodetic(10.01, 45.02, 300.0)
+    de, dn, du = coords.enu_offsets(10.0, 45.0, 100.0, 10.01, 45.02, 300.0)
+    np.testing.assert_allclose((e, n, u), (de, dn, du), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 90.0, 180.0, 193.6, 270.0, -45.0])
+def test_local_frame_turned_by_an_azimuth(azimuth):
+    """X points at the azimuth (clockwise from north), Y = Z x X, Z up; conversions invert."""
+    frame = coords.LocalFrame(10.0, 45.0, 100.0, azimuth)
+    east, north, up = coords.enu_rotation(10.0, 45.0)
+    a = np.radians(azimuth)
+    x_axis = np.sin(a) * east + np.cos(a) * north
+    np.testing.assert_allclose(frame.rotation, np.stack([x_axis, np.cross(up, x_axis), up]),
+                               atol=1e-15)
+    assert not frame.rotation.flags.writeable
+    x, y, z = frame.from_geodetic(10.01, 45.02, 300.0)
+    g = frame.to_geodetic(x, y, z)
+    assert g.lon == pytest.approx(10.01, abs=1e-12) and g.h == pytest.approx(300.0, abs=1e-7)
+    # the stacked (..., 3) conversions give the same numbers as the per-axis ones
+    ecef = np.stack(coords.geodetic_to_ecef([10.01, 9.9], [45.02, 44.9], [300.0, 0.0]), -1)
+    local = frame.from_ecef_xyz(ecef)
+    np.testing.assert_array_equal(local, np.stack(frame.from_ecef(*ecef.T), axis=-1))
+    np.testing.assert_allclose(frame.to_ecef_xyz(local), ecef, rtol=0, atol=1e-8)
+    np.testing.assert_array_equal(frame.to_ecef_xyz(local),
+                                  np.stack(frame.to_ecef(*local.T), axis=-1))
+
+
+def test_local_frame_south_axes():
+    south = coords.LocalFrame(10.0, 45.0, 100.0, 180.0)  # X south, Y east
+    east, north, up = coords.enu_rotation(10.0, 45.0)
+    np.testing.assert_allclose(south.rotation, np.stack([-north, east, up]), atol=1e-15)
+
+
+def test_local_frame_dict_round_trip_and_errors():
+    frame = coords.LocalFrame(121.91, 24.62, 0.0, 180.0)
+    data = frame.to_dict()
+    assert data == {"lon0": 121.91, "lat0": 24.62, "h0": 0.0, "azimuth_deg": 180.0}
+    assert coords.LocalFrame.from_dict(data) == frame
+    assert coords.LocalFrame.from_dict({"lon0": 1.0, "lat0": 2.0}) == coords.LocalFrame(1, 2)
+    with pytest.raises(CoordinateError, match="azimuth"):
+        coords.LocalFrame.from_dict({"lon0": 1.0, "lat0": 2.0, "azimut": 3.0})
+    with pytest.raises(CoordinateError, match="lat0"):
+        coords.LocalFrame(0.0, 91.0)
+    with pytest.raises(CoordinateError, match="azimuth_deg"):
+        coords.LocalFrame(0.0, 0.0, 0.0, float("nan"))
+    with pytest.raises(CoordinateError, match="h0"):
+        coords.LocalFrame(0.0, 0.0, "abc")  # type: ignore[arg-type]
+    assert issubclass(CoordinateError, GeoblockError) and issubclass(CoordinateError, ValueError)
 
 
 def test_enu_offsets():

@@ -9,9 +9,21 @@ import warnings
 import pytest
 
 import geoblock
-from geoblock.errors import DuplicateModelError, PluginWarning
+import geoblock.testing
+from geoblock.errors import DuplicateModelError, PluginError, PluginWarning, UnknownModelError
 from geoblock.models.registry import build_registry
-from geoblock.plugins import create_plugin_manager, list_plugins
+from geoblock.plugins import (
+    PLUGIN_MODULES_VARIABLE,
+    create_plugin_manager,
+    disable_plugin_module,
+    enable_plugin_module,
+    list_plugins,
+    plugin_modules,
+    refresh_plugins,
+)
+from geoblock.testing.synthetic import AffineCamera, ConstantVelocityPushbroom
+
+SYNTHETIC = {"synthetic-affine", "synthetic-pushbroom"}
 
 MODEL_PLUGIN = '''
 from geoblock import hookimpl
@@ -202,4 +214,143 @@ def test_global_registry_and_refresh():
     assert first is get_registry()
     refresh_plugins()
     assert get_registry() is not first
-    assert {"image-correction", "synthetic-affine", "synthetic-pushbroom"} <= set(get_registry())
+    # the synthetic test models: enabled for geoblock's tests (tests/conftest.py) and kept
+    # across refresh_plugins()
+    assert {"image-correction", *SYNTHETIC} <= set(get_registry())
+    assert get_registry().owner("synthetic-affine") == "geoblock.testing.plugin"
+
+
+# ---------------------------------------------------------------- the opt-in test models
+@pytest.fixture
+def without_synthetic_models(monkeypatch):
+    """The process as a user has it: the synthetic test models not enabled."""
+    monkeypatch.delenv(PLUGIN_MODULES_VARIABLE, raising=False)
+    geoblock.testing.disable_synthetic_models()
+    yield
+    geoblock.testing.enable_synthetic_models()
+
+
+def test_a_users_registry_has_no_test_models(without_synthetic_models):
+    from geoblock.models import get_registry
+
+    assert plugin_modules() == ()
+    registry = get_registry()
+    assert not SYNTHETIC & set(registry)
+    assert {"image-correction", "linescan", "crop", "collocation"} <= set(registry)
+    assert "geoblock.testing.plugin" not in [p.name for p in list_plugins()]
+    assert not SYNTHETIC & set(build_registry(create_plugin_manager(modules=())))
+
+
+def test_enable_synthetic_models_registers_them_and_survives_refresh(without_synthetic_models):
+    from geoblock.models import get_registry
+
+    assert "synthetic-affine" not in get_registry()
+    geoblock.testing.enable_synthetic_models()
+    geoblock.testing.enable_synthetic_models()  # twice: nothing more
+    assert plugin_modules() == ("geoblock.testing.plugin",)
+    assert SYNTHETIC <= set(get_registry())
+    refresh_plugins()
+    assert SYNTHETIC <= set(get_registry())
+    info = {p.name: p for p in list_plugins()}["geoblock.testing.plugin"]
+    assert (info.distribution, info.models) == ("geoblock", tuple(sorted(SYNTHETIC)))
+    geoblock.testing.disable_synthetic_models()
+    assert not SYNTHETIC & set(get_registry())
+
+
+def test_synthetic_models_work_without_the_registry(without_synthetic_models, tmp_path):
+    """Building, pickling and to_dict/from_dict of the classes need no registration; opening
+    their JSON does, and the error says how to load them."""
+    import pickle
+
+    for model in (AffineCamera.example(), ConstantVelocityPushbroom.example(roll=0.01)):
+        assert pickle.loads(pickle.dumps(model)) == model
+        assert type(model).from_dict(model.to_dict()) == model
+        path = geoblock.write_model(model, tmp_path / f"{model.name}.json")
+        with pytest.raises(UnknownModelError) as info:
+            geoblock.open_model(path)
+        message = str(info.value)
+        assert str(path) in message and repr(model.name) in message
+        assert "GEOBLOCK_PLUGIN_MODULES=geoblock.testing.plugin" in message
+        assert "enable_synthetic_models()" in message
+    geoblock.testing.enable_synthetic_models()
+    assert geoblock.open_model(path) == model
+
+
+def test_wrapped_synthetic_model_json_names_the_test_model(without_synthetic_models, tmp_path):
+    from geoblock.models.corrections import ImageCorrection
+
+    path = geoblock.write_model(ImageCorrection(AffineCamera.example(), order=1),
+                                tmp_path / "wrapped.json")
+    with pytest.raises(UnknownModelError, match=r"'synthetic-affine' is one of geoblock's "
+                       r"synthetic test models.*GEOBLOCK_PLUGIN_MODULES=geoblock\.testing\.plugin"):
+        geoblock.open_model(path)
+
+
+def test_unknown_model_json_gets_no_test_model_hint(tmp_path):
+    path = tmp_path / "other.json"
+    path.write_text('{"model": "someone-elses", "schema_version": 1}')
+    with pytest.raises(UnknownModelError, match="someone-elses") as info:
+        geoblock.open_model(path)
+    assert "geoblock.testing.plugin" not in str(info.value)
+
+
+# ---------------------------------------------------------------- GEOBLOCK_PLUGIN_MODULES
+def test_plugin_modules_variable_loads_modules_without_entry_points(site, monkeypatch):
+    (site / "gb_dev.py").write_text(MODEL_PLUGIN.format(cls="Dev", model="dev-camera"))
+    monkeypatch.setenv(PLUGIN_MODULES_VARIABLE, " gb_dev , geoblock.testing.plugin,gb_dev,")
+    monkeypatch.setenv("GEOBLOCK_PLUGINS", "")  # restricts entry points, not these modules
+    assert plugin_modules()[:2] == ("gb_dev", "geoblock.testing.plugin")
+    pm = create_plugin_manager()
+    registry = build_registry(pm)
+    assert registry.owner("dev-camera") == "gb_dev"
+    assert registry.owner("synthetic-affine") == "geoblock.testing.plugin"
+    info = {p.name: p for p in list_plugins(pm)}["gb_dev"]
+    assert (info.distribution, info.version, info.models) == (None, None, ("dev-camera",))
+    # loaded whatever entry_points says; modules=() loads none
+    assert "dev-camera" in build_registry(create_plugin_manager(entry_points=False))
+    assert "dev-camera" not in build_registry(create_plugin_manager(modules=()))
+
+
+def test_plugin_module_that_fails_to_import_is_skipped_with_a_warning(site, monkeypatch):
+    (site / "gb_dev_broken.py").write_text("raise ImportError('needs libfoo')\n")
+    monkeypatch.setenv(PLUGIN_MODULES_VARIABLE, "gb_dev_broken,gb_no_such_module")
+    with pytest.warns(PluginWarning) as record:
+        pm = create_plugin_manager()
+    messages = [str(w.message) for w in record]
+    assert any("'gb_dev_broken'" in m and "needs libfoo" in m for m in messages)
+    assert any("'gb_no_such_module'" in m and "ModuleNotFoundError" in m for m in messages)
+    assert "image-correction" in build_registry(pm)
+
+
+def test_plugin_module_also_an_entry_point_loads_once(site, monkeypatch):
+    install_distribution(
+        site, "geoblock-good", {"good": "gb_good"},
+        {"gb_good": MODEL_PLUGIN.format(cls="Good", model="good-camera")},
+    )
+    monkeypatch.setenv(PLUGIN_MODULES_VARIABLE, "gb_good,geoblock._default_plugin")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pm = create_plugin_manager()
+    assert build_registry(pm).owner("good-camera") == "good"
+    assert "gb_good" not in [p.name for p in list_plugins(pm)]
+
+
+def test_enable_plugin_module_refuses_a_module_that_cannot_be_imported(site):
+    (site / "gb_dev_broken.py").write_text("raise RuntimeError('boom')\n")
+    with pytest.raises(PluginError, match=r"'gb_dev_broken'.*RuntimeError: boom"):
+        enable_plugin_module("gb_dev_broken")
+    assert "gb_dev_broken" not in plugin_modules()
+
+
+def test_enable_and_disable_a_plugin_module(site):
+    from geoblock.models import get_registry
+
+    (site / "gb_dev.py").write_text(MODEL_PLUGIN.format(cls="Dev", model="dev-camera"))
+    enable_plugin_module("gb_dev")
+    try:
+        assert "dev-camera" in get_registry()
+        refresh_plugins()
+        assert get_registry().owner("dev-camera") == "gb_dev"
+    finally:
+        disable_plugin_module("gb_dev")
+    assert "dev-camera" not in get_registry()

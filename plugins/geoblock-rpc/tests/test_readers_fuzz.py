@@ -171,7 +171,7 @@ KNOWN = {
                              ["RPB field lineOffset has no value"]),
     "xml unknown encoding": ("rpcm/test_rpc_files/rpc_WV3.xml",
                              [('encoding="UTF-8"', 'encoding="UTFabc"')],
-                             ["not well-formed XML", "UTFabc"]),
+                             ["XML: not well-formed", "UTFabc"]),
     "isd blank NUMROWS": ("stereopipeline/tests/dg_example1.xml",
                           [("<NUMROWS>23708</NUMROWS>", "<NUMROWS> </NUMROWS>")],
                           ["NUMROWS", "positive whole numbers"]),

@@ -14,7 +14,6 @@ from geoblock_spot.chenlee import (
     TABLE1_COEFFICIENTS,
     ChenLeeModel,
     Interior,
-    WorkFrame,
     rotation_matrix,
 )
 from geoblock_spot.fit import fit_chenlee
@@ -72,7 +71,7 @@ def test_projection_satisfies_equations_1_2_and_6(table1):
     g = table1.backproject(rng.uniform(0, 5999, 5), rng.uniform(0, 5999, 5),
                            rng.uniform(0, 3000, 5))
     row, col = table1.project(g.lon, g.lat, g.h)
-    p = table1.frame.from_geodetic(g.lon, g.lat, g.h)
+    p = np.stack(table1.frame.from_geodetic(g.lon, g.lat, g.h), axis=-1)  # (5, 3) work frame
     for i in range(5):
         x, sy_y = _collinearity(table1, p[i], row[i] * 0.0015)
         assert abs(x) < 1e-12  # metres in the focal plane: 1e-7 px
@@ -83,7 +82,7 @@ def test_projection_satisfies_equations_1_2_and_6(table1):
 def test_centre_pixel_looks_along_the_view_axis(table1):
     """Paper pixel (N + 1) / 2 (y = 0) is geoblock col (N - 1) / 2 = 2999.5."""
     g = table1.backproject(1000.0, 2999.5, 0.0)
-    p = table1.frame.from_geodetic(g.lon, g.lat, g.h)
+    p = np.stack(table1.frame.from_geodetic(g.lon, g.lat, g.h), axis=-1)
     t = 1000 * 0.0015
     _, sy_y = _collinearity(table1, p, t)
     assert abs(sy_y) < 1e-12
@@ -100,14 +99,48 @@ def test_table1_scene_lies_in_central_west_taiwan(table1):
 
 
 def test_work_frame_axes():
-    enu = WorkFrame(10.0, 45.0, 100.0)  # azimuth 90: X east, Y north, Z up
+    enu = coords.LocalFrame(10.0, 45.0, 100.0)  # azimuth 90: X east, Y north, Z up
     np.testing.assert_allclose(enu.rotation, coords.enu_rotation(10.0, 45.0), atol=1e-15)
-    south = WorkFrame(10.0, 45.0, 100.0, 180.0)  # X south, Y east
+    south = coords.LocalFrame(10.0, 45.0, 100.0, 180.0)  # X south, Y east
     east, north, up = coords.enu_rotation(10.0, 45.0)
     np.testing.assert_allclose(south.rotation, np.stack([-north, east, up]), atol=1e-15)
     p = south.from_geodetic(10.01, 45.02, 300.0)
-    g = south.to_geodetic(p)
+    g = south.to_geodetic(*p)
     assert g.lon == pytest.approx(10.01, abs=1e-12) and g.h == pytest.approx(300.0, abs=1e-7)
+
+
+def test_the_model_works_in_a_local_frame_and_its_json_layout_is_unchanged(table1):
+    assert type(table1.frame) is coords.LocalFrame
+    assert table1.frame == coords.LocalFrame(121.91, 24.62, 0.0, 180.0)
+    # the 0.1 JSON layout of the frame (WorkFrame.to_dict) still loads, and is still written
+    data = table1.to_dict()
+    assert data["frame"] == {"lon0": 121.91, "lat0": 24.62, "h0": 0.0, "azimuth_deg": 180.0}
+    assert ChenLeeModel.from_dict(data) == table1
+    data["frame"] = {"lon0": 121.91, "lat0": 24.62}  # h0 and azimuth_deg default
+    assert ChenLeeModel.from_dict(data).frame == coords.LocalFrame(121.91, 24.62)
+    data["frame"] = {"lon0": 121.91, "lat0": 124.62, "h0": 0.0}
+    with pytest.raises(SerializationError, match="lat0"):
+        ChenLeeModel.from_dict(data)
+    with pytest.raises(ModelFormatError, match="LocalFrame"):
+        ChenLeeModel(TABLE1_COEFFICIENTS, (121.91, 24.62))
+
+
+def test_work_frame_is_a_deprecated_local_frame_with_the_old_methods(table1):
+    from geoblock.errors import GeoblockDeprecationWarning
+
+    with pytest.warns(GeoblockDeprecationWarning, match="LocalFrame"):
+        from geoblock_spot.chenlee import WorkFrame
+
+        old = WorkFrame(121.91, 24.62, 0.0, 180.0)
+    assert isinstance(old, coords.LocalFrame)
+    p = old.from_geodetic([121.9, 122.0], [24.6, 24.7], [0.0, 10.0])  # (..., 3) as in 0.1
+    assert p.shape == (2, 3)
+    np.testing.assert_array_equal(p, np.stack(table1.frame.from_geodetic(
+        [121.9, 122.0], [24.6, 24.7], [0.0, 10.0]), axis=-1))
+    assert old.to_geodetic(p).h == pytest.approx([0.0, 10.0], abs=1e-7)
+    np.testing.assert_allclose(old.to_ecef(old.from_ecef(old.to_ecef(p))), old.to_ecef(p))
+    model = ChenLeeModel(TABLE1_COEFFICIENTS, old)
+    assert type(model.frame) is coords.LocalFrame and model == table1
 
 
 # ---------------------------------------------------------------------- convergence and domain

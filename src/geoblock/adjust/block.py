@@ -37,10 +37,11 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.stats
+from numpy.typing import NDArray
 
 from geoblock import coords
 from geoblock.adjust.normal import NormalSystem, SingularPoints, measurement_pairs
@@ -65,7 +66,17 @@ from geoblock.errors import (
     TooFewPointsError,
 )
 from geoblock.models.protocol import SensorModel
-from geoblock.typing import Status
+from geoblock.typing import (
+    BoolArray,
+    Float64Array,
+    IndexArray,
+    Status,
+    StatusArray,
+    StrArray,
+)
+
+if TYPE_CHECKING:
+    from geoblock.dem.protocol import DemSource
 
 __all__ = [
     "DEM_CONTROLS",
@@ -134,7 +145,7 @@ class Block:
     models: Mapping[str, SensorModel]
     measurements: ImagePoints
     ground: GroundPoints | None = None
-    dem: Any = None
+    dem: DemSource | None = None
     dem_sigma_m: float = 5.0
     sigmas: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
@@ -186,10 +197,10 @@ class ParameterEstimates:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    prior: np.ndarray
-    values: np.ndarray
-    prior_sigmas: np.ndarray
-    sigmas: np.ndarray
+    prior: Float64Array
+    values: Float64Array
+    prior_sigmas: Float64Array
+    sigmas: Float64Array
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,19 +227,19 @@ class MeasurementResults:
         Flagged in a point with two rays only: it cannot be told from its partner.
     """
 
-    id: np.ndarray
-    image: np.ndarray
-    kind: np.ndarray
-    row: np.ndarray
-    col: np.ndarray
-    v_row: np.ndarray
-    v_col: np.ndarray
-    weight: np.ndarray
-    redundancy_row: np.ndarray
-    redundancy_col: np.ndarray
-    test: np.ndarray
-    flagged: np.ndarray
-    ambiguous: np.ndarray
+    id: StrArray
+    image: StrArray
+    kind: StrArray
+    row: Float64Array
+    col: Float64Array
+    v_row: Float64Array
+    v_col: Float64Array
+    weight: Float64Array
+    redundancy_row: Float64Array
+    redundancy_col: Float64Array
+    test: Float64Array
+    flagged: BoolArray
+    ambiguous: BoolArray
 
 
 @dataclass(frozen=True, eq=False)
@@ -242,18 +253,18 @@ class PointResults:
     failed in the last iteration).
     """
 
-    id: np.ndarray
-    kind: np.ndarray
-    lon: np.ndarray
-    lat: np.ndarray
-    h: np.ndarray
-    covariance: np.ndarray
-    images: np.ndarray
-    dem_height: np.ndarray
-    status: np.ndarray
+    id: StrArray
+    kind: StrArray
+    lon: Float64Array
+    lat: Float64Array
+    h: Float64Array
+    covariance: Float64Array
+    images: IndexArray
+    dem_height: Float64Array
+    status: StrArray
 
     @property
-    def sigma_enu(self) -> np.ndarray:
+    def sigma_enu(self) -> Float64Array:
         """(J, 3) posterior standard deviations along east, north, up, metres."""
         return np.sqrt(np.einsum("jii->ji", self.covariance))
 
@@ -296,18 +307,18 @@ class BlockResult:
 
     models: dict[str, SensorModel]
     parameters: dict[str, ParameterEstimates]
-    covariance: np.ndarray
+    covariance: Float64Array
     parameter_index: list[tuple[str, str]]
     points: PointResults
     measurements: MeasurementResults
     check: PointErrors
-    predicted_sigma: np.ndarray
+    predicted_sigma: Float64Array
     ictp: IctpDiscrepancies | None
     sigma0: float
     dof: int
     converged: bool
     iterations: int
-    history: list[dict] = field(repr=False)
+    history: list[dict[str, Any]] = field(repr=False)
     mode: str = "block"
     dem_control: str = "observation"
     robust: str = "none"
@@ -321,7 +332,7 @@ class BlockResult:
 
     def stats_by_image(self, kind: str) -> dict[str, AccuracyStats]:
         """:meth:`stats` per image (images that have such points)."""
-        out = {}
+        out: dict[str, AccuracyStats] = {}
         for image in self.models:
             sel = self.check.select(kind=kind, image=image)
             if len(sel):
@@ -356,38 +367,91 @@ class _Setup:
 
     ids: tuple[str, ...]
     models: list[SensorModel]
-    adj: list[np.ndarray]
-    gidx: np.ndarray
+    adj: list[IndexArray]  # per image, the indices of its adjustable parameters
+    gidx: IndexArray  # (images, max adjustable): position of each in the parameter vector
     n_params: int
-    prior_x: np.ndarray  # (K,) a-priori values of the adjustable parameters
-    prior_w: np.ndarray  # (K, K) prior weight
+    prior_x: Float64Array  # (K,) a-priori values of the adjustable parameters
+    prior_w: Float64Array  # (K, K) prior weight
     # measurements in the solution
-    m_sel: np.ndarray  # indices into block.measurements
-    image_of: np.ndarray
-    point_of: np.ndarray
-    obs: np.ndarray  # (M, 2)
-    sigma: np.ndarray  # (M, 2)
+    m_sel: IndexArray  # indices into block.measurements
+    image_of: IndexArray
+    point_of: IndexArray
+    obs: Float64Array  # (M, 2)
+    sigma: Float64Array  # (M, 2)
     # points in the solution
-    p_id: np.ndarray
-    p_kind: np.ndarray
+    p_id: StrArray
+    p_kind: StrArray
     frame: coords.LocalFrame
-    x0: np.ndarray  # (J, 3) initial local coordinates
-    g_center: np.ndarray  # (J, 3) centre of the ground pseudo-observation
-    g_weight: np.ndarray  # (J, 3, 3)
-    dem_rows: np.ndarray  # (J,) bool: TP under DEM control
-    n_images: np.ndarray  # (J,) images measuring the point
+    x0: Float64Array  # (J, 3) initial local coordinates
+    g_center: Float64Array  # (J, 3) centre of the ground pseudo-observation
+    g_weight: Float64Array  # (J, 3, 3)
+    dem_rows: BoolArray  # (J,) bool: TP under DEM control
+    n_images: IndexArray  # (J,) images measuring the point
 
 
-def _params_vector(models: list[SensorModel], adj: list[np.ndarray], gidx: np.ndarray,
-                   k: int) -> np.ndarray:
+@dataclass
+class _DemRows:
+    """DEM observation rows of the points in the solution, NaN (gradient 0) where none."""
+
+    grad: Float64Array  # (J, 3) d(h - DEM)/d(local coordinates)
+    misclosure: Float64Array  # (J,) observed 0 minus computed h - DEM, metres
+    sigma: Float64Array  # (J,) metres
+    dem_h: Float64Array  # (J,) DEM height under the point, metres
+
+
+@dataclass
+class _Evaluation:
+    """Residuals and cost at one estimate (:meth:`_Engine.evaluate`)."""
+
+    models: list[SensorModel]
+    v: Float64Array  # (M, 2) observed minus computed, pixels
+    vw: Float64Array  # (M, 2) whitened by the a-priori sigmas, 0 where not projected
+    status: StatusArray  # (M,)
+    ok: BoolArray  # (M,) projected
+    lon: Float64Array  # (J,)
+    lat: Float64Array
+    h: Float64Array
+    dem: _DemRows
+    pts: Float64Array  # (J, 3) local coordinates
+    cost_fixed: float  # parameter and DEM terms
+    cost: float = math.nan
+
+
+@dataclass
+class _Statistics:
+    """Cofactors, redundancy numbers and test statistics of a solution."""
+
+    q_pp: Float64Array  # (K, K)
+    q_xx: Float64Array  # (J, 3, 3)
+    q_px: Any  # the parameter-point cofactor blocks, as NormalSystem.point_cofactors gives
+    test: Float64Array  # (M,)
+    redundancy: Float64Array  # (M, 2)
+
+
+@dataclass
+class _Solution:
+    """What :meth:`_Engine.run` found."""
+
+    x: Float64Array
+    pts: Float64Array
+    ev: _Evaluation
+    system: NormalSystem
+    converged: bool
+    iterations: int
+    history: list[dict[str, Any]]
+    threshold: float
+
+
+def _params_vector(models: list[SensorModel], adj: list[IndexArray], gidx: IndexArray,
+                   k: int) -> Float64Array:
     x = np.zeros(k)
     for i, m in enumerate(models):
         x[gidx[i, : adj[i].size]] = m.parameters.values[adj[i]]
     return x
 
 
-def _with_params(models: list[SensorModel], adj: list[np.ndarray], gidx: np.ndarray,
-                 x: np.ndarray) -> list[SensorModel]:
+def _with_params(models: list[SensorModel], adj: list[IndexArray], gidx: IndexArray,
+                 x: Float64Array) -> list[SensorModel]:
     out = []
     for i, m in enumerate(models):
         values = np.array(m.parameters.values)
@@ -396,7 +460,7 @@ def _with_params(models: list[SensorModel], adj: list[np.ndarray], gidx: np.ndar
     return out
 
 
-def _prior(model: SensorModel, overrides: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+def _prior(model: SensorModel, overrides: Mapping[str, float]) -> tuple[BoolArray, Float64Array]:
     """Adjustable mask (P,) and a-priori covariance (P, P) of a model's parameters, with
     sigma overrides by name (0: fixed; inf: free)."""
     params = model.parameters
@@ -414,20 +478,22 @@ def _prior(model: SensorModel, overrides: Mapping[str, float]) -> tuple[np.ndarr
     return mask, cov
 
 
-def _local_to_enu_rotation(frame: coords.LocalFrame, lon, lat) -> np.ndarray:
+def _local_to_enu_rotation(frame: coords.LocalFrame, lon: Float64Array,
+                           lat: Float64Array) -> Float64Array:
     """(J, 3, 3) rotation from the local frame to ENU at each point."""
     return coords.enu_rotation(lon, lat) @ frame.rotation.T
 
 
-def _dem_height(dem: Any, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+def _dem_height(dem: DemSource, lon: Float64Array, lat: Float64Array) -> Float64Array:
     """DEM heights above the ellipsoid, metres; NaN where the DEM has none."""
     h, status = dem.height_with_status(lon, lat)
     return np.where(status == Status.CONVERGED, np.asarray(h, dtype=np.float64), np.nan)
 
 
-def _names(ids: np.ndarray, limit: int = 8) -> str:
-    ids = [str(i) for i in np.asarray(ids).tolist()]
-    return ", ".join(ids[:limit]) + (f" and {len(ids) - limit} more" if len(ids) > limit else "")
+def _names(ids: StrArray, limit: int = 8) -> str:
+    names = [str(i) for i in np.asarray(ids).tolist()]
+    return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit
+                                       else "")
 
 
 class _Engine:
@@ -477,6 +543,7 @@ class _Engine:
         h0 = np.full(p_id.size, np.nan)
         sig = np.full((p_id.size, 3), np.nan)
         if is_gcp.any():
+            assert ground is not None  # GCP kinds come from the ground points
             g = gk[is_gcp]
             lon0[is_gcp], lat0[is_gcp], h0[is_gcp] = ground.lon[g], ground.lat[g], ground.h[g]
             sig[is_gcp] = np.maximum(
@@ -495,7 +562,8 @@ class _Engine:
             self.tp_sigma_m_first = float(np.max(tp_sig))
         frame = coords.LocalFrame.centred_on(lon0, lat0, h0)
         x0 = np.stack(frame.from_geodetic(lon0, lat0, h0), axis=-1)
-        g_weight = np.linalg.inv(ground_covariance(lon0, lat0, sig, frame.rotation))
+        g_weight = np.asarray(np.linalg.inv(ground_covariance(lon0, lat0, sig, frame.rotation)),
+                              dtype=np.float64)
         dem_rows = is_tp & (self.dem_control != "none")
         self.s = _Setup(
             ids=ids, models=models, adj=adj, gidx=gidx, n_params=k, prior_x=prior_x,
@@ -509,8 +577,10 @@ class _Engine:
         self.weight = np.ones(sel.size)  # robust weight factors
 
     # ------------------------------------------------------------------ checks
-    def setup_checks(self, ids, models, adj, sizes, meas, sel, p_id, p_kind, n_images,
-                     priors) -> None:
+    def setup_checks(self, ids: tuple[str, ...], models: list[SensorModel],
+                     adj: list[IndexArray], sizes: IndexArray, meas: ImagePoints,
+                     sel: IndexArray, p_id: StrArray, p_kind: StrArray, n_images: IndexArray,
+                     priors: list[tuple[BoolArray, Float64Array]]) -> None:
         if sel.size == 0:
             raise TooFewPointsError(
                 f"block: no GCP{' or TP' if len(ids) > 1 else ''} measurement in image(s) "
@@ -542,7 +612,9 @@ class _Engine:
                 [f"{image}:{models[i].parameters.names[a]}" for a in adj[i][free]],
                 f"block: image {image!r}")
 
-    def _initial_tps(self, models, ids, meas, sel, point_of, tp_points):
+    def _initial_tps(self, models: list[SensorModel], ids: tuple[str, ...], meas: ImagePoints,
+                     sel: IndexArray, point_of: IndexArray, tp_points: IndexArray,
+                     ) -> tuple[Float64Array, Float64Array, Float64Array]:
         """Initial TP positions: each ray localised on the DEM (or at the GCPs' mean
         height), averaged in ECEF; then put on the DEM."""
         from geoblock.dem.intersect import localize
@@ -559,9 +631,11 @@ class _Engine:
             if block.dem is not None:
                 g, _ = localize(models[i], rows, cols, block.dem, warn=False)
             else:
-                h = (np.nanmean(block.ground.h) if block.ground is not None and len(block.ground)
-                     else float(np.mean(models[i].height_range)))
-                g, _ = models[i].backproject_with_status(rows, cols, np.full(rows.shape, h))
+                h_guess = (float(np.nanmean(block.ground.h))
+                           if block.ground is not None and len(block.ground)
+                           else float(np.mean(models[i].height_range)))
+                g, _ = models[i].backproject_with_status(rows, cols,
+                                                         np.full(rows.shape, h_guess))
             xyz[mine] = np.stack(coords.geodetic_to_ecef(*g), axis=-1)
         pts = point_of[want]
         sums = np.zeros((point_of.max() + 1, 3))
@@ -584,7 +658,7 @@ class _Engine:
         return lon, lat, h
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, x: np.ndarray, pts: np.ndarray) -> dict[str, Any]:
+    def evaluate(self, x: Float64Array, pts: Float64Array) -> _Evaluation:
         """Residuals and cost at parameters ``x`` (K,) and points ``pts`` (J, 3)."""
         s = self.s
         models = _with_params(s.models, s.adj, s.gidx, x)
@@ -605,22 +679,22 @@ class _Engine:
         vw = np.where(ok[:, None], v / s.sigma, 0.0)
         dp = x - s.prior_x
         dem = self._dem_rows(lon, lat, h, pts)
-        ev = {"models": models, "v": v, "vw": vw, "status": status, "ok": ok,
-              "lon": lon, "lat": lat, "h": h, "dem": dem, "pts": pts,
-              "cost_fixed": float(dp @ s.prior_w @ dp)
-              + float(np.nansum((dem["misclosure"] / dem["sigma"]) ** 2))}
+        ev = _Evaluation(models=models, v=v, vw=vw, status=status, ok=ok, lon=lon, lat=lat, h=h,
+                         dem=dem, pts=pts, cost_fixed=float(dp @ s.prior_w @ dp)
+                         + float(np.nansum((dem.misclosure / dem.sigma) ** 2)))
         self.recost(ev)
         return ev
 
-    def recost(self, ev: dict[str, Any]) -> None:
-        """``ev["cost"]`` again after the robust weights or the ground pseudo-observations
+    def recost(self, ev: _Evaluation) -> None:
+        """``ev.cost`` again after the robust weights or the ground pseudo-observations
         changed (no projection)."""
         s = self.s
-        dg = ev["pts"] - s.g_center
-        ev["cost"] = (float(np.sum(self.weight[:, None] * ev["vw"] ** 2)) + ev["cost_fixed"]
-                      + float(np.einsum("ji,jik,jk->", dg, s.g_weight, dg)))
+        dg = ev.pts - s.g_center
+        ev.cost = (float(np.sum(self.weight[:, None] * ev.vw ** 2)) + ev.cost_fixed
+                   + float(np.einsum("ji,jik,jk->", dg, s.g_weight, dg)))
 
-    def _dem_rows(self, lon, lat, h, pts) -> dict[str, np.ndarray]:
+    def _dem_rows(self, lon: Float64Array, lat: Float64Array, h: Float64Array,
+                  pts: Float64Array) -> _DemRows:
         """DEM observation rows of the TPs: gradient (J, 3), misclosure (J,) (observed 0
         minus computed ``h - DEM``), sigma (J,); NaN where there is none."""
         s = self.s
@@ -630,8 +704,9 @@ class _Engine:
         sigma = np.full(n, np.nan)
         rows = np.flatnonzero(s.dem_rows)
         if rows.size == 0:
-            return {"grad": grad, "misclosure": mis, "sigma": sigma, "dem_h": mis.copy()}
+            return _DemRows(grad=grad, misclosure=mis, sigma=sigma, dem_h=mis.copy())
         dem = self.block.dem
+        assert dem is not None  # dem_rows is empty without a DEM
         hd = _dem_height(dem, lon[rows], lat[rows])
         if self.dem_control == "iterate":
             up = _local_to_enu_rotation(s.frame, lon[rows], lat[rows])[:, 2, :]  # d h / d local
@@ -654,40 +729,40 @@ class _Engine:
         grad[bad] = 0.0
         dem_h = np.full(n, np.nan)
         dem_h[rows] = hd
-        return {"grad": grad, "misclosure": mis, "sigma": sigma, "dem_h": dem_h}
+        return _DemRows(grad=grad, misclosure=mis, sigma=sigma, dem_h=dem_h)
 
     # ------------------------------------------------------------------ linearisation
-    def linearize(self, x: np.ndarray, pts: np.ndarray, ev: dict[str, Any]) -> NormalSystem:
+    def linearize(self, x: Float64Array, pts: Float64Array, ev: _Evaluation) -> NormalSystem:
         s = self.s
         m_count = s.obs.shape[0]
         kmax = s.gidx.shape[1]
         a = np.zeros((m_count, 2, kmax))
         b = np.zeros((m_count, 2, 3))
         rot_t = s.frame.rotation.T  # d ECEF / d local
-        for i, model in enumerate(ev["models"]):
+        for i, model in enumerate(ev.models):
             mine = np.flatnonzero(s.image_of == i)
             if mine.size == 0:
                 continue
             j = s.point_of[mine]
-            lon, lat, h = ev["lon"][j], ev["lat"][j], ev["h"][j]
+            lon, lat, h = ev.lon[j], ev.lat[j], ev.h[j]
             if s.adj[i].size:
                 a[mine, :, : s.adj[i].size] = model.partials_parameters(lon, lat, h)[
                     ..., s.adj[i]]
             b[mine] = model.partials_ground(lon, lat, h) @ rot_t
-        ok = ev["ok"][:, None, None]
+        ok = ev.ok[:, None, None]
         # whitened by the a-priori sigmas (kept for the statistics), then by the robust weights
         a = np.where(ok, np.nan_to_num(a / s.sigma[:, :, None]), 0.0)
         b = np.where(ok, np.nan_to_num(b / s.sigma[:, :, None]), 0.0)
         self.prior_whitened = (a, b)
         w = np.sqrt(self.weight)[:, None, None]
         a, b = a * w, b * w
-        vw = ev["vw"] * np.sqrt(self.weight)[:, None]
-        dem = ev["dem"]
-        has = np.isfinite(dem["misclosure"])
-        dw = np.where(has, 1.0 / np.where(has, dem["sigma"], 1.0) ** 2, 0.0)
-        n_extra = s.g_weight + dw[:, None, None] * dem["grad"][:, :, None] * dem["grad"][:, None]
+        vw = ev.vw * np.sqrt(self.weight)[:, None]
+        dem = ev.dem
+        has = np.isfinite(dem.misclosure)
+        dw = np.where(has, 1.0 / np.where(has, dem.sigma, 1.0) ** 2, 0.0)
+        n_extra = s.g_weight + dw[:, None, None] * dem.grad[:, :, None] * dem.grad[:, None]
         b_extra = (np.einsum("jik,jk->ji", s.g_weight, s.g_center - pts)
-                   + (dw * np.where(has, dem["misclosure"], 0.0))[:, None] * dem["grad"])
+                   + (dw * np.where(has, dem.misclosure, 0.0))[:, None] * dem.grad)
         return NormalSystem(
             n_params=s.n_params, gidx=s.gidx, image_of=s.image_of, point_of=s.point_of,
             a=a, b=b, v=vw, n_pp_prior=s.prior_w, b_p_prior=s.prior_w @ (s.prior_x - x),
@@ -721,11 +796,11 @@ class _Engine:
 
     # ------------------------------------------------------------------ solution
     def run(self, *, max_iterations: int, tolerance: float, robust: str, robust_k: float,
-            alpha: float, label: str, progress: Callable[[str], None]) -> dict[str, Any]:
+            alpha: float, label: str, progress: Callable[[str], None]) -> _Solution:
         s = self.s
         x = s.prior_x.copy()
         pts = s.x0.copy()
-        history: list[dict] = []
+        history: list[dict[str, Any]] = []
         ev = self.evaluate(x, pts)
         self._check_status(ev)
         lam = 0.0
@@ -749,8 +824,8 @@ class _Engine:
                 if self.dem_control == "iterate":
                     pts_new = self._onto_dem(pts_new)
                 ev_new = self.evaluate(x_new, pts_new)
-                bad = ~ev_new["ok"] & ev["ok"]
-                if (ev_new["cost"] <= ev["cost"] * (1 + 1e-9) + 1e-12 and not bad.any()) or \
+                bad = ~ev_new.ok & ev.ok
+                if (ev_new.cost <= ev.cost * (1 + 1e-9) + 1e-12 and not bad.any()) or \
                         self.dem_control == "iterate" and not bad.any():
                     accepted = True
                     break
@@ -765,7 +840,7 @@ class _Engine:
             # the change actually made (dem_control="iterate" puts the heights back on the DEM)
             step = max(float(np.max(np.abs(x_new - x) / sig_p, initial=0.0)),
                        float(np.max(np.abs(pts_new - pts) / sig_x, initial=0.0)))
-            rel = (ev["cost"] - ev_new["cost"]) / max(ev["cost"], 1e-300)
+            rel = (ev.cost - ev_new.cost) / max(ev.cost, 1e-300)
             x, pts, ev = x_new, pts_new, ev_new
             if self.tp_prior == "floating":
                 # re-centred on the estimate, and released after the first step: a damping
@@ -778,8 +853,8 @@ class _Engine:
             lam = lam / 10.0 if lam > 1e-7 else 0.0
             n_obs = self._n_obs(ev)
             dof = n_obs - s.n_params - 3 * s.p_id.size
-            sigma0 = math.sqrt(ev["cost"] / dof) if dof > 0 else float("nan")
-            history.append({"iteration": it, "cost": ev["cost"], "sigma0": sigma0,
+            sigma0 = math.sqrt(ev.cost / dof) if dof > 0 else float("nan")
+            history.append({"iteration": it, "cost": ev.cost, "sigma0": sigma0,
                             "max_step_sigma": step, "damping": lam,
                             "rejected": int(np.sum(self.weight == 0)),
                             "downweighted": int(np.sum(self.weight < 0.5))})
@@ -803,17 +878,17 @@ class _Engine:
             mine = np.flatnonzero(s.image_of == i)
             if mine.size and s.adj[i].size:
                 j = s.point_of[mine]
-                check_not_degenerate(s.models[i], ev["models"][i], ev["lon"][j], ev["lat"][j],
-                                     ev["h"][j], f"{label}: image {image!r}")
+                check_not_degenerate(s.models[i], ev.models[i], ev.lon[j], ev.lat[j],
+                                     ev.h[j], f"{label}: image {image!r}")
         system = self.linearize(x, pts, ev)
         try:
             system.solve(0.0)
         except np.linalg.LinAlgError as exc:
             raise self.diagnose(system, exc) from None
-        return {"x": x, "pts": pts, "ev": ev, "system": system, "converged": converged,
-                "iterations": it, "history": history, "threshold": threshold}
+        return _Solution(x=x, pts=pts, ev=ev, system=system, converged=converged,
+                         iterations=it, history=history, threshold=threshold)
 
-    def _onto_dem(self, pts: np.ndarray) -> np.ndarray:
+    def _onto_dem(self, pts: Float64Array) -> Float64Array:
         """``dem_control="iterate"``: the TPs' heights re-interpolated from the DEM."""
         s = self.s
         rows = np.flatnonzero(s.dem_rows)
@@ -821,23 +896,24 @@ class _Engine:
             return pts
         g = s.frame.to_geodetic(pts[rows, 0], pts[rows, 1], pts[rows, 2])
         lon, lat = np.asarray(g.lon), np.asarray(g.lat)
+        assert self.block.dem is not None  # dem_rows is empty without a DEM
         hd = _dem_height(self.block.dem, lon, lat)
         h = np.where(np.isfinite(hd), hd, np.asarray(g.h))
         out = pts.copy()
         out[rows] = np.stack(s.frame.from_geodetic(lon, lat, h), axis=-1)
         return out
 
-    def _n_obs(self, ev) -> int:
+    def _n_obs(self, ev: _Evaluation) -> int:
         s = self.s
-        img = 2 * int(np.sum(ev["ok"] & (self.weight > 0)))
+        img = 2 * int(np.sum(ev.ok & (self.weight > 0)))
         prior = int(np.sum(np.diag(s.prior_w) > 0))
-        dem = int(np.sum(np.isfinite(ev["dem"]["misclosure"])))
+        dem = int(np.sum(np.isfinite(ev.dem.misclosure)))
         ground = s.p_id.size if self.tp_prior == "fixed" else int(np.sum(s.p_kind == "gcp"))
         return img + prior + 3 * ground + dem
 
-    def _check_status(self, ev) -> None:
+    def _check_status(self, ev: _Evaluation) -> None:
         s = self.s
-        bad = ~ev["ok"]
+        bad = ~ev.ok
         if bad.any():
             meas = self.block.measurements
             idx = s.m_sel[bad]
@@ -849,45 +925,45 @@ class _Engine:
         # a GCP that projects more than an image away from its measurement through the
         # unadjusted model is a wrong coordinate or a wrong image, not an adjustable error
         size = np.array([max(m.shape) for m in s.models], dtype=np.float64)[s.image_of]
-        far = (s.p_kind[s.point_of] == "gcp") & (np.hypot(ev["v"][:, 0], ev["v"][:, 1]) > size)
+        far = (s.p_kind[s.point_of] == "gcp") & (np.hypot(ev.v[:, 0], ev.v[:, 1]) > size)
         if far.any():
             meas = self.block.measurements
             idx = s.m_sel[far]
             listed = ", ".join(f"{p} in {i} ({d:.3g} px)" for p, i, d in zip(
                 meas.id[idx][:8].tolist(), meas.image[idx][:8].tolist(),
-                np.hypot(ev["v"][far, 0], ev["v"][far, 1])[:8].tolist(), strict=True))
+                np.hypot(ev.v[far, 0], ev.v[far, 1])[:8].tolist(), strict=True))
             raise ObservationError(
                 f"block: {int(far.sum())} GCP measurement(s) lie more than an image size from "
                 f"where the unadjusted model projects their ground point: {listed}; check "
                 "their ground coordinates, image ids and measurements")
 
-    def statistics(self, ev, system: NormalSystem) -> dict[str, np.ndarray]:
+    def statistics(self, ev: _Evaluation, system: NormalSystem) -> _Statistics:
         """Per-measurement hat blocks, redundancy and leave-one-out test statistics."""
         q_pp = system.parameter_cofactor()
         q_xx, q_px = system.point_cofactors(q_pp)
         s = self.s
-        w = np.where(ev["ok"], self.weight, 0.0)
+        w = np.where(ev.ok, self.weight, 0.0)
         # D = J Q J^T / sigma^2 (a-priori whitening), every measurement, rejected ones too
         d = system.hat_blocks(q_pp, q_xx, q_px, *self.prior_whitened)
         eye = np.eye(2)
         i_wd = eye - w[:, None, None] * d
-        u = np.where(ev["ok"][:, None], ev["v"] / s.sigma, np.nan)  # a-priori whitened
+        u = np.where(ev.ok[:, None], ev.v / s.sigma, np.nan)  # a-priori whitened
         with np.errstate(divide="ignore", invalid="ignore"):
             inv_iwd = np.linalg.inv(i_wd)
             v_loo = np.einsum("mij,mj->mi", inv_iwd, u)
             d_loo = d + w[:, None, None] * d @ inv_iwd @ d
             test = np.einsum("mi,mij,mj->m", v_loo, np.linalg.inv(eye + d_loo), v_loo)
         redundancy = np.einsum("mii->mi", i_wd)
-        return {"q_pp": q_pp, "q_xx": q_xx, "q_px": q_px, "test": test,
-                "redundancy": redundancy}
+        return _Statistics(q_pp=q_pp, q_xx=q_xx, q_px=q_px, test=test, redundancy=redundancy)
 
-    def _reweight(self, ev, system, robust: str, k: float, threshold: float) -> bool:
+    def _reweight(self, ev: _Evaluation, system: NormalSystem, robust: str, k: float,
+                  threshold: float) -> bool:
         """Update the robust weights; True if they changed enough to iterate again."""
         s = self.s
         old = self.weight.copy()
         if robust == "snooping":
             st = self.statistics(ev, system)
-            test = np.where(self.weight > 0, st["test"], -np.inf)
+            test = np.where(self.weight > 0, st.test, -np.inf)
             over = test > threshold
             if not over.any():
                 return False
@@ -897,8 +973,8 @@ class _Engine:
             reject = over & (test >= best[s.point_of])
             self.weight[reject] = 0.0
             return True
-        e = np.sqrt(np.sum(np.where(ev["ok"][:, None], ev["vw"], 0.0) ** 2, axis=1))
-        used = ev["ok"]
+        e = np.sqrt(np.sum(np.where(ev.ok[:, None], ev.vw, 0.0) ** 2, axis=1))
+        used = ev.ok
         scale = max(1.0, float(np.median(e[used])) / math.sqrt(2 * math.log(2)))
         t = e / scale
         if robust == "huber":
@@ -909,7 +985,7 @@ class _Engine:
         return bool(np.max(np.abs(w - old)) > 1e-2)
 
 
-def _inverse_diag_estimate(system: NormalSystem) -> np.ndarray:
+def _inverse_diag_estimate(system: NormalSystem) -> Float64Array:
     """(K,) ``1 / diag(S)`` of the reduced system: a cheap lower bound of the parameters'
     cofactor variances, good enough to scale the convergence test."""
     reduced = system.reduced
@@ -1024,7 +1100,7 @@ def adjust(
             notes.append("no DEM: the TP heights are not controlled")
     else:
         groups = [(i,) for i in ids]
-    solutions = []
+    solutions: list[tuple[_Engine, _Solution, _Statistics]] = []
     for group in groups:
         engine = _Engine(block, group, use_tps=mode == "block",
                          dem_control=dem_control if mode == "block" else "none",
@@ -1033,8 +1109,7 @@ def adjust(
         label = "block" if mode == "block" else f"single {group[0]}"
         out = engine.run(max_iterations=max_iterations, tolerance=tolerance, robust=robust,
                          robust_k=robust_k, alpha=alpha, label=label, progress=say)
-        out["stats"] = engine.statistics(out["ev"], out["system"])
-        solutions.append((engine, out))
+        solutions.append((engine, out, engine.statistics(out.ev, out.system)))
     result = _assemble(block, solutions, mode=mode, dem_control=dem_control, robust=robust,
                        collocation=collocation, notes=notes)
     say(f"adjusted in {time.perf_counter() - start:.2f} s: sigma0 {result.sigma0:.4g}, "
@@ -1042,44 +1117,45 @@ def adjust(
     return result
 
 
-def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation,
-              notes) -> BlockResult:
+def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistics]], *,
+              mode: str, dem_control: str, robust: str,
+              collocation: bool | Mapping[str, Any], notes: list[str]) -> BlockResult:
     meas = block.measurements
     n_meas = len(meas)
     models: dict[str, SensorModel] = {}
     parameters: dict[str, ParameterEstimates] = {}
-    cov_blocks = []
+    cov_blocks: list[Float64Array] = []
     index: list[tuple[str, str]] = []
     v = np.full((n_meas, 2), np.nan)
     weight = np.full(n_meas, np.nan)
     red = np.full((n_meas, 2), np.nan)
     test = np.full(n_meas, np.nan)
-    point_parts: list[dict[str, np.ndarray]] = []
+    point_parts: list[dict[str, NDArray[Any]]] = []
     cost = 0.0
     dof = 0
     converged = True
     iterations = 0
-    history: list[dict] = []
-    q_by_image: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    history: list[dict[str, Any]] = []
+    q_by_image: dict[str, tuple[IndexArray, Float64Array]] = {}
     threshold = np.inf
-    for engine, out in solutions:
+    for engine, out, st in solutions:
         s = engine.s
-        ev, st = out["ev"], out["stats"]
+        ev = out.ev
         n_obs = engine._n_obs(ev)
         dof_k = n_obs - s.n_params - 3 * s.p_id.size
-        cost += ev["cost"]
+        cost += ev.cost
         dof += dof_k
-        converged &= out["converged"]
-        iterations = max(iterations, out["iterations"])
-        history.extend(out["history"])
-        threshold = out["threshold"]
-        sigma0_k = math.sqrt(ev["cost"] / dof_k) if dof_k > 0 else float("nan")
+        converged &= out.converged
+        iterations = max(iterations, out.iterations)
+        history.extend(out.history)
+        threshold = out.threshold
+        sigma0_k = math.sqrt(ev.cost / dof_k) if dof_k > 0 else float("nan")
         var0 = sigma0_k**2 if dof_k > 0 else 1.0
         for i, image in enumerate(s.ids):
-            model = ev["models"][i]
+            model = ev.models[i]
             models[image] = model
             g = s.gidx[i, : s.adj[i].size]
-            q = st["q_pp"][np.ix_(g, g)] * var0
+            q = st.q_pp[np.ix_(g, g)] * var0
             q_by_image[image] = (s.adj[i], q)
             names = tuple(model.parameters.names[a] for a in s.adj[i])
             parameters[image] = ParameterEstimates(
@@ -1090,21 +1166,21 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
                 sigmas=np.sqrt(np.diag(q)))
             cov_blocks.append(q)
             index.extend((image, n) for n in names)
-        v[s.m_sel] = ev["v"]
-        weight[s.m_sel] = np.where(ev["ok"], engine.weight, 0.0)
-        red[s.m_sel] = st["redundancy"]
-        test[s.m_sel] = st["test"] / max(1.0, sigma0_k if np.isfinite(sigma0_k) else 1.0) ** 2
-        rot = _local_to_enu_rotation(s.frame, ev["lon"], ev["lat"])
-        cov_enu = rot @ (st["q_xx"] * var0) @ np.swapaxes(rot, 1, 2)
+        v[s.m_sel] = ev.v
+        weight[s.m_sel] = np.where(ev.ok, engine.weight, 0.0)
+        red[s.m_sel] = st.redundancy
+        test[s.m_sel] = st.test / max(1.0, sigma0_k if np.isfinite(sigma0_k) else 1.0) ** 2
+        rot = _local_to_enu_rotation(s.frame, ev.lon, ev.lat)
+        cov_enu = rot @ (st.q_xx * var0) @ np.swapaxes(rot, 1, 2)
         status = np.full(s.p_id.size, "ok", dtype="<U8")
-        status[s.dem_rows & ~np.isfinite(ev["dem"]["misclosure"])] = "no-dem"
+        status[s.dem_rows & ~np.isfinite(ev.dem.misclosure)] = "no-dem"
         failed = np.zeros(s.p_id.size, bool)
-        failed[s.point_of[~ev["ok"]]] = True
+        failed[s.point_of[~ev.ok]] = True
         status[failed] = "failed"
-        dem_h = (_dem_height(block.dem, ev["lon"], ev["lat"]) if block.dem is not None
+        dem_h = (_dem_height(block.dem, ev.lon, ev.lat) if block.dem is not None
                  else np.full(s.p_id.size, np.nan))
-        point_parts.append({"id": s.p_id, "kind": s.p_kind, "lon": ev["lon"], "lat": ev["lat"],
-                            "h": ev["h"], "cov": cov_enu, "images": s.n_images, "dem": dem_h,
+        point_parts.append({"id": s.p_id, "kind": s.p_kind, "lon": ev.lon, "lat": ev.lat,
+                            "h": ev.h, "cov": cov_enu, "images": s.n_images, "dem": dem_h,
                             "status": status})
     k = sum(b.shape[0] for b in cov_blocks)
     covariance = np.zeros((k, k))
@@ -1113,10 +1189,9 @@ def _assemble(block: Block, solutions, *, mode, dem_control, robust, collocation
         covariance[o:o + b.shape[0], o:o + b.shape[0]] = b
         o += b.shape[0]
     if mode == "block":  # one solution: the full covariance, cross-image terms included
-        engine, out = solutions[0]
         dof_k = dof
         var0 = cost / dof if dof > 0 else 1.0
-        covariance = out["stats"]["q_pp"] * var0
+        covariance = solutions[0][2].q_pp * var0
     sigma0 = math.sqrt(cost / dof) if dof > 0 else float("nan")
 
     # blunder flags
@@ -1200,8 +1275,9 @@ def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) 
 
 
 def _check_points(block: Block, models: Mapping[str, SensorModel],
-                  q_by_image: Mapping[str, tuple[np.ndarray, np.ndarray]], sigma0: float,
-                  adjusted: Mapping[str, SensorModel] | None = None):
+                  q_by_image: Mapping[str, tuple[IndexArray, Float64Array]], sigma0: float,
+                  adjusted: Mapping[str, SensorModel] | None = None,
+                  ) -> tuple[PointErrors, Float64Array, Float64Array]:
     """GCP/ICP ground errors per measurement through ``models``, their sigmas predicted
     through ``adjusted`` (the models whose parameters ``q_by_image`` gives, per image, the
     adjusted indices and their covariance of; default ``models``), image residuals."""

@@ -39,7 +39,7 @@ from geoblock.errors import ObservationError, SerializationError, TooFewPointsEr
 from geoblock.models.corrections import ImageSpaceCorrection
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
-from geoblock.typing import ArrayLike, Float64Array
+from geoblock.typing import ArrayLike, BoolArray, Float64Array
 
 __all__ = [
     "GAUSS_FACTOR",
@@ -57,7 +57,7 @@ GAUSS_FACTOR = 2.146
 _MAX_PAIRS = 4_000_000
 
 
-def _frozen(a: ArrayLike) -> np.ndarray:
+def _frozen(a: ArrayLike) -> Float64Array:
     out = np.array(a, dtype=np.float64)
     out.flags.writeable = False
     return out
@@ -114,13 +114,13 @@ def default_d_max(row: ArrayLike, col: ArrayLike) -> float:
     return float(np.max(_distances(p, p)))
 
 
-def _finite_points(row: ArrayLike, col: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _finite_points(row: ArrayLike, col: ArrayLike) -> tuple[Float64Array, Float64Array, BoolArray]:
     """``row``, ``col`` broadcast together as float64 (*S,), and the (*S,) finite mask."""
     r, c = broadcast_float64(row=row, col=col, _copy=False)
     return r, c, np.isfinite(r) & np.isfinite(c)
 
 
-def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _distances(a: Float64Array, b: Float64Array) -> Float64Array:
     """(N, n) Euclidean distances between (N, 2) and (n, 2) points."""
     return np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
 
@@ -179,7 +179,7 @@ class Collocation:
         for name, value in (("mean", mean), ("mu", mu), ("weights", weights)):
             object.__setattr__(self, name, _frozen(value))
 
-    def _fit(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _fit(self) -> tuple[Float64Array, Float64Array, Float64Array]:
         """``mean`` (2,), ``mu`` (2,) and ``weights`` (2, n) of the data (see fit_collocation)."""
         shapes = [getattr(self, k).shape for k in ("row", "col", "d_row", "d_col")]
         if len(set(shapes)) != 1 or len(shapes[0]) != 1:
@@ -232,13 +232,13 @@ class Collocation:
         )
 
     # ------------------------------------------------------------------ prediction
-    def _coefficients(self) -> np.ndarray:
+    def _coefficients(self) -> Float64Array:
         """(n, 2): ``(1 - r_n) mu_k w_k``, so that ``s - m = exp(...) @ coefficients``."""
         return ((1.0 - self.filtering_ratio) * self.mu[:, None] * self.weights).T
 
     def _evaluate(
-        self, r: np.ndarray, c: np.ndarray, gradient: bool
-    ) -> tuple[np.ndarray, np.ndarray | None]:
+        self, r: Float64Array, c: Float64Array, gradient: bool
+    ) -> tuple[Float64Array, Float64Array | None]:
         """Corrections (N, 2) and, if asked, their (N, 2, 2) Jacobian wrt (row, col)."""
         n = self.n_points
         coef = self._coefficients()
@@ -477,10 +477,11 @@ class CollocationCorrection(ImageSpaceCorrection):
 
     @classmethod
     def example(cls) -> CollocationCorrection:
-        """Around ``AffineCamera.example()``: 40 points with a smooth field of about 1-2 px."""
-        from geoblock.testing.synthetic import AffineCamera
+        """Around a 1000 x 1200 px ``LinescanModel.example``: 40 points with a smooth field
+        of about 1-2 px."""
+        from geoblock.models.linescan import LinescanModel
 
-        base = AffineCamera.example()
+        base = LinescanModel.example((1000, 1200))
         rows, cols = base.shape
         rng = np.random.default_rng(20100)
         r = rng.uniform(0.0, rows - 1.0, 40)
@@ -510,7 +511,7 @@ class CollocationCorrection(ImageSpaceCorrection):
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
-        from geoblock.models.registry import from_dict
+        from geoblock.plugins import from_dict
 
         try:
             base, colloc = data["base"], data["collocation"]
@@ -519,19 +520,20 @@ class CollocationCorrection(ImageSpaceCorrection):
         return cls(from_dict(base), Collocation.from_dict(colloc))
 
     # ------------------------------------------------------------------ correction
-    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _correction(self, r: Float64Array, c: Float64Array) -> tuple[Float64Array, Float64Array]:
         """(N, 2) corrections and the (N, 2, 2) Jacobian of the corrected coords wrt (r, c)."""
         out, jac = self._collocation._evaluate(r, c, gradient=True)
+        assert jac is not None  # asked for with gradient=True
         jac[:, 0, 0] += 1.0
         jac[:, 1, 1] += 1.0
         return out, jac
 
-    def _offset(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+    def _offset(self, r: Float64Array, c: Float64Array) -> Float64Array:
         """(N, 2) corrections, without their Jacobian."""
         out, _ = self._collocation._evaluate(r, c, gradient=False)
         return out
 
-    def _start(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _start(self, row: Float64Array, col: Float64Array) -> tuple[Float64Array, Float64Array]:
         """Fixed-point start: the corrected coordinates minus the correction there."""
         out = self._offset(row, col)
         return row - out[:, 0], col - out[:, 1]

@@ -28,6 +28,7 @@ temporaries and its scatter; the Schur complement is accumulated from each point
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, TypeAlias
 
 import numpy as np
 import scipy.linalg
@@ -35,6 +36,8 @@ import scipy.linalg.lapack
 import scipy.sparse
 import scipy.sparse.linalg
 from numba import njit
+
+from geoblock.typing import BoolArray, Float64Array, IndexArray
 
 __all__ = ["DENSE_LIMIT", "USE_NUMBA", "NormalSystem", "Pairs", "SingularPoints",
            "measurement_pairs"]
@@ -47,6 +50,12 @@ USE_NUMBA = True
 #: thread (a numba Cholesky): as fast as LAPACK's at this size, and immune to the wake-up
 #: delays of BLAS's worker threads competing with numba's for the cores
 SERIAL_CHOLESKY_LIMIT = 400
+
+F64: TypeAlias = Float64Array
+Idx: TypeAlias = IndexArray
+#: the reduced normal matrix: a dense (K, K) array, or a scipy.sparse matrix above
+#: DENSE_LIMIT (scipy ships no type information: Any)
+ReducedMatrix: TypeAlias = Any
 
 
 @dataclass(frozen=True)
@@ -198,7 +207,7 @@ class NormalSystem:
         dx = np.einsum("jik,jk->ji", self.c, t)
         return dp, dx
 
-    def _reduce(self, n_pp: np.ndarray):
+    def _reduce(self, n_pp: F64) -> tuple[ReducedMatrix, F64]:
         if self._numba:
             return self._reduce_numba(n_pp)
         k = self.n_params
@@ -223,7 +232,7 @@ class NormalSystem:
         sub = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(k, k)).tocsc()
         return scipy.sparse.csc_matrix(n_pp) - sub, rhs
 
-    def _reduce_numba(self, n_pp: np.ndarray):
+    def _reduce_numba(self, n_pp: F64) -> tuple[ReducedMatrix, F64]:
         k = self.n_params
         rhs = np.array(self.b_p, dtype=np.float64)
         dense = k <= DENSE_LIMIT
@@ -248,7 +257,7 @@ class NormalSystem:
         return scipy.sparse.csc_matrix(n_pp) + sub, rhs
 
     @staticmethod
-    def _solve_reduced(reduced, rhs: np.ndarray) -> np.ndarray:
+    def _solve_reduced(reduced: ReducedMatrix, rhs: F64) -> F64:
         if reduced.shape[0] == 0:
             return np.zeros(0)
         if scipy.sparse.issparse(reduced):
@@ -400,8 +409,10 @@ def _inv3(m: np.ndarray, numba: bool = False) -> np.ndarray:
 
 # ================================================================================ kernels
 @njit(cache=True)
-def _nb_accumulate(a, b, v, gidx, image_of, point_of, n_pp, b_p, n_xx, b_x,
-                   n_px):  # pragma: no cover - numba
+def _nb_accumulate(  # pragma: no cover - numba
+    a: F64, b: F64, v: F64, gidx: Idx, image_of: Idx, point_of: Idx, n_pp: F64, b_p: F64,
+    n_xx: F64, b_x: F64, n_px: F64,
+) -> None:
     """Per measurement: ``N_px = A^T B`` into ``n_px``; ``A^T A``, ``A^T v`` scattered into
     ``n_pp``, ``b_p``; ``B^T B``, ``B^T v`` into the point's ``n_xx``, ``b_x``."""
     kmax = a.shape[2]
@@ -428,8 +439,10 @@ def _nb_accumulate(a, b, v, gidx, image_of, point_of, n_pp, b_p, n_xx, b_x,
 
 
 @njit(cache=True)
-def _nb_reduce(n_px, cinv, b_x, gidx, image_of, order, start, dense, reduced, rhs, rows, cols,
-               vals):  # pragma: no cover - numba
+def _nb_reduce(  # pragma: no cover - numba
+    n_px: F64, cinv: F64, b_x: F64, gidx: Idx, image_of: Idx, order: Idx, start: Idx,
+    dense: bool, reduced: F64, rhs: F64, rows: Idx, cols: Idx, vals: F64,
+) -> int:
     """Schur complement over the points, point by point: ``rhs -= N_pj C_j b_j`` and, for
     each pair ``a <= b`` of the point's measurements, ``-N_pa C_j N_bp`` (and its transpose
     for ``a < b``) subtracted from ``reduced`` (dense) or written as triplets (negated).
@@ -489,8 +502,9 @@ def _nb_reduce(n_px, cinv, b_x, gidx, image_of, order, start, dense, reduced, rh
 
 
 @njit(cache=True)
-def _nb_back_substitute(n_px, cinv, b_x, gidx, image_of, point_of, dp,
-                        dx):  # pragma: no cover - numba
+def _nb_back_substitute(  # pragma: no cover - numba
+    n_px: F64, cinv: F64, b_x: F64, gidx: Idx, image_of: Idx, point_of: Idx, dp: F64, dx: F64,
+) -> None:
     """``dx_j = C_j (b_j - sum_m N_jp dp)``."""
     kmax = n_px.shape[1]
     t = b_x.copy()
@@ -509,8 +523,10 @@ def _nb_back_substitute(n_px, cinv, b_x, gidx, image_of, point_of, dp,
 
 
 @njit(cache=True)
-def _nb_point_cofactors(q_pp, n_px, cinv, gidx, image_of, order, start, q_xx,
-                        q_px):  # pragma: no cover - numba
+def _nb_point_cofactors(  # pragma: no cover - numba
+    q_pp: F64, n_px: F64, cinv: F64, gidx: Idx, image_of: Idx, order: Idx, start: Idx,
+    q_xx: F64, q_px: F64,
+) -> None:
     """:meth:`NormalSystem.point_cofactors`, point by point: ``U_a = sum_b Q[i_a, i_b] N_pb``,
     ``Q_px[a] = -U_a C_j``, ``Q_xx[j] = C_j + C_j (sum_a N_pa^T U_a) C_j``."""
     kmax = n_px.shape[1]
@@ -559,8 +575,10 @@ def _nb_point_cofactors(q_pp, n_px, cinv, gidx, image_of, order, start, q_xx,
 
 
 @njit(cache=True)
-def _nb_hat_blocks(q_pp, q_xx, q_px, a, b, gidx, image_of, point_of,
-                   out):  # pragma: no cover - numba
+def _nb_hat_blocks(  # pragma: no cover - numba
+    q_pp: F64, q_xx: F64, q_px: F64, a: F64, b: F64, gidx: Idx, image_of: Idx, point_of: Idx,
+    out: F64,
+) -> None:
     """:meth:`NormalSystem.hat_blocks` per measurement."""
     kmax = a.shape[2]
     aq = np.empty(kmax)
@@ -594,7 +612,7 @@ def _nb_hat_blocks(q_pp, q_xx, q_px, a, b, gidx, image_of, point_of,
 
 
 @njit(cache=True)
-def _nb_inv3(m, out, redo, ratio):  # pragma: no cover - numba
+def _nb_inv3(m: F64, out: F64, redo: BoolArray, ratio: float) -> None:  # pragma: no cover
     """Per block: scaled to a unit diagonal, its eigenvalues in closed form (trigonometric
     solution) and the inverse by the adjugate. Blocks with a zero or non-finite diagonal, or
     an eigenvalue ratio below ``ratio``, are flagged in ``redo``."""
@@ -659,7 +677,7 @@ def _nb_inv3(m, out, redo, ratio):  # pragma: no cover - numba
 
 
 @njit(cache=True)
-def _nb_cholesky(a, low):  # pragma: no cover - numba
+def _nb_cholesky(a: F64, low: F64) -> bool:  # pragma: no cover - numba
     """Lower Cholesky factor of ``a`` into ``low`` (zeroed); False if not positive definite."""
     n = a.shape[0]
     for j in range(n):
@@ -678,7 +696,7 @@ def _nb_cholesky(a, low):  # pragma: no cover - numba
 
 
 @njit(cache=True)
-def _nb_cho_solve(low, x):  # pragma: no cover - numba
+def _nb_cho_solve(low: F64, x: F64) -> None:  # pragma: no cover - numba
     """Solve ``L L^T y = x`` in place."""
     n = low.shape[0]
     for i in range(n):

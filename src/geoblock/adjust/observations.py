@@ -8,12 +8,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from geoblock.errors import ObservationError
-from geoblock.typing import ArrayLike
+from geoblock.typing import ArrayLike, BoolArray, Float64Array, IndexArray, StrArray
 
 __all__ = ["KINDS", "ControlPoints", "GroundPoints", "ImagePoints"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class ControlPoints:
     """Ground points with their measured positions in one image (GCPs or ICPs).
 
@@ -34,45 +34,61 @@ class ControlPoints:
         (default 0: error-free ground).
     """
 
-    id: np.ndarray
-    lon: np.ndarray
-    lat: np.ndarray
-    h: np.ndarray
-    row: np.ndarray
-    col: np.ndarray
-    sigma_row: np.ndarray | float = 0.5
-    sigma_col: np.ndarray | float = 0.5
-    sigma_e: np.ndarray | float = 0.0
-    sigma_n: np.ndarray | float = 0.0
-    sigma_h: np.ndarray | float = 0.0
+    id: StrArray
+    lon: Float64Array
+    lat: Float64Array
+    h: Float64Array
+    row: Float64Array
+    col: Float64Array
+    sigma_row: Float64Array
+    sigma_col: Float64Array
+    sigma_e: Float64Array
+    sigma_n: Float64Array
+    sigma_h: Float64Array
 
-    def __post_init__(self) -> None:
-        ids = np.atleast_1d(np.asarray(self.id)).astype(str)
+    def __init__(
+        self,
+        id: ArrayLike,
+        lon: ArrayLike,
+        lat: ArrayLike,
+        h: ArrayLike,
+        row: ArrayLike,
+        col: ArrayLike,
+        sigma_row: ArrayLike = 0.5,
+        sigma_col: ArrayLike = 0.5,
+        sigma_e: ArrayLike = 0.0,
+        sigma_n: ArrayLike = 0.0,
+        sigma_h: ArrayLike = 0.0,
+    ) -> None:
+        ids = np.atleast_1d(np.asarray(id)).astype(str)
         n = ids.shape[0]
         if ids.ndim != 1:
             raise ObservationError(
                 f"ControlPoints: id must be one-dimensional, got shape {ids.shape}"
             )
         object.__setattr__(self, "id", ids)
-        for f in fields(self)[1:]:
-            raw = np.asarray(getattr(self, f.name), dtype=np.float64)
+        given = {"lon": lon, "lat": lat, "h": h, "row": row, "col": col,
+                 "sigma_row": sigma_row, "sigma_col": sigma_col, "sigma_e": sigma_e,
+                 "sigma_n": sigma_n, "sigma_h": sigma_h}
+        for name, value in given.items():
+            raw = np.asarray(value, dtype=np.float64)
             if raw.ndim == 0:
                 raw = np.full(n, float(raw))
             if raw.shape != (n,):
                 raise ObservationError(
-                    f"ControlPoints: {f.name} has shape {raw.shape}, expected ({n},) like id"
+                    f"ControlPoints: {name} has shape {raw.shape}, expected ({n},) like id"
                 )
             bad = ~np.isfinite(raw)
-            if f.name.startswith("sigma"):
-                positive = f.name in ("sigma_row", "sigma_col")
+            if name.startswith("sigma"):
+                positive = name in ("sigma_row", "sigma_col")
                 bad |= (raw <= 0) if positive else (raw < 0)
             if bad.any():
                 which = ", ".join(ids[bad][:5]) + (" ..." if bad.sum() > 5 else "")
-                rule = "finite and > 0" if f.name in ("sigma_row", "sigma_col") else (
-                    "finite and >= 0" if f.name.startswith("sigma") else "finite")
-                raise ObservationError(f"ControlPoints: {f.name} must be {rule} (points {which})")
+                rule = "finite and > 0" if name in ("sigma_row", "sigma_col") else (
+                    "finite and >= 0" if name.startswith("sigma") else "finite")
+                raise ObservationError(f"ControlPoints: {name} must be {rule} (points {which})")
             raw.flags.writeable = False
-            object.__setattr__(self, f.name, raw)
+            object.__setattr__(self, name, raw)
         dup = {i for i in ids.tolist() if (ids == i).sum() > 1}
         if dup:
             raise ObservationError(f"ControlPoints: duplicate point ids {sorted(dup)}")
@@ -90,7 +106,8 @@ class ControlPoints:
         missing = [c for c in ("lon", "lat", "h", "row", "col") if c not in columns]
         if missing:
             raise ObservationError(f"control points need columns {missing}")
-        kwargs = {f.name: columns[f.name] for f in fields(cls) if f.name in columns}
+        kwargs: dict[str, ArrayLike] = {
+            f.name: columns[f.name] for f in fields(cls) if f.name in columns}
         for name, value in defaults.items():
             kwargs.setdefault(name, value)
         if "id" not in kwargs:
@@ -108,7 +125,7 @@ KINDS = ("gcp", "icp", "tp", "ictp")
 tie point (ICTP). GCPs and TPs enter an adjustment; ICPs and ICTPs are only evaluated."""
 
 
-def _text(value: ArrayLike, n: int | None, name: str, where: str) -> np.ndarray:
+def _text(value: ArrayLike, n: int | None, name: str, where: str) -> StrArray:
     out = np.asarray(value).astype(str)
     if out.ndim == 0:
         out = np.full(1 if n is None else n, str(out))
@@ -117,7 +134,7 @@ def _text(value: ArrayLike, n: int | None, name: str, where: str) -> np.ndarray:
     return out
 
 
-def _floats(value: ArrayLike, n: int, name: str, where: str) -> np.ndarray:
+def _floats(value: ArrayLike, n: int, name: str, where: str) -> Float64Array:
     try:
         out = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -129,7 +146,7 @@ def _floats(value: ArrayLike, n: int, name: str, where: str) -> np.ndarray:
     return out
 
 
-def lookup(table: np.ndarray, keys: np.ndarray) -> np.ndarray:
+def lookup(table: ArrayLike, keys: ArrayLike) -> IndexArray:
     """Index of each of ``keys`` in the 1-D array ``table`` of unique strings; -1 if absent."""
     table = np.asarray(table)
     keys = np.asarray(keys)
@@ -141,12 +158,12 @@ def lookup(table: np.ndarray, keys: np.ndarray) -> np.ndarray:
     return np.where(hit, order[pos], -1).astype(np.intp)
 
 
-def _name_points(ids: np.ndarray, bad: np.ndarray) -> str:
+def _name_points(ids: StrArray, bad: BoolArray) -> str:
     listed = ", ".join(ids[bad][:5].tolist())
     return listed + (f" and {int(bad.sum()) - 5} more" if bad.sum() > 5 else "")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class GroundPoints:
     """Surveyed ground points of a block, one row per point (the ground CSV of a block).
 
@@ -166,28 +183,40 @@ class GroundPoints:
         metres (0: error-free; the adjustment floors them at 1 mm).
     """
 
-    id: np.ndarray
-    kind: np.ndarray
-    lon: np.ndarray
-    lat: np.ndarray
-    h: np.ndarray
-    sigma_e: np.ndarray | float = 0.0
-    sigma_n: np.ndarray | float = 0.0
-    sigma_h: np.ndarray | float = 0.0
+    id: StrArray
+    kind: StrArray
+    lon: Float64Array
+    lat: Float64Array
+    h: Float64Array
+    sigma_e: Float64Array
+    sigma_n: Float64Array
+    sigma_h: Float64Array
 
-    def __post_init__(self) -> None:
+    def __init__(
+        self,
+        id: ArrayLike,
+        kind: ArrayLike,
+        lon: ArrayLike,
+        lat: ArrayLike,
+        h: ArrayLike,
+        sigma_e: ArrayLike = 0.0,
+        sigma_n: ArrayLike = 0.0,
+        sigma_h: ArrayLike = 0.0,
+    ) -> None:
         where = "ground points"
-        ids = _text(self.id, None, "id", where)
+        ids = _text(id, None, "id", where)
         n = ids.shape[0]
-        kind = np.char.lower(np.char.strip(_text(self.kind, n, "kind", where)))
+        kind = np.char.lower(np.char.strip(_text(kind, n, "kind", where)))
         bad = ~np.isin(kind, ("gcp", "icp"))
         if bad.any():
             raise ObservationError(
                 f"{where}: kind must be 'gcp' or 'icp' (points {_name_points(ids, bad)} have "
                 f"{sorted(set(kind[bad].tolist()))}); tie points have no ground coordinates")
+        given = {"lon": lon, "lat": lat, "h": h, "sigma_e": sigma_e, "sigma_n": sigma_n,
+                 "sigma_h": sigma_h}
         values = {}
-        for name in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"):
-            arr = _floats(getattr(self, name), n, name, where)
+        for name, value in given.items():
+            arr = _floats(value, n, name, where)
             bad = ~np.isfinite(arr)
             if name.startswith("sigma"):
                 bad |= arr < 0
@@ -242,7 +271,7 @@ class GroundPoints:
         return GroundPoints(*(getattr(self, f.name)[m] for f in fields(self)))
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class ImagePoints:
     """Image measurements of a block, one row per measurement (the image CSV of a block).
 
@@ -262,28 +291,38 @@ class ImagePoints:
         one is a TP).
     """
 
-    id: np.ndarray
-    image: np.ndarray
-    row: np.ndarray
-    col: np.ndarray
-    sigma_row: np.ndarray | float = 0.5
-    sigma_col: np.ndarray | float = 0.5
-    kind: np.ndarray | None = None
+    id: StrArray
+    image: StrArray
+    row: Float64Array
+    col: Float64Array
+    sigma_row: Float64Array
+    sigma_col: Float64Array
+    kind: StrArray
 
-    def __post_init__(self) -> None:
+    def __init__(
+        self,
+        id: ArrayLike,
+        image: ArrayLike,
+        row: ArrayLike,
+        col: ArrayLike,
+        sigma_row: ArrayLike = 0.5,
+        sigma_col: ArrayLike = 0.5,
+        kind: ArrayLike | None = None,
+    ) -> None:
         where = "image measurements"
-        ids = _text(self.id, None, "id", where)
+        ids = _text(id, None, "id", where)
         n = ids.shape[0]
-        image = _text(self.image, n, "image", where)
-        kind = (np.full(n, "", dtype="<U4") if self.kind is None
-                else np.char.lower(np.char.strip(_text(self.kind, n, "kind", where))))
-        bad = ~np.isin(kind, ("", *KINDS))
+        image_ = _text(image, n, "image", where)
+        kind_ = (np.full(n, "", dtype="<U4") if kind is None
+                 else np.char.lower(np.char.strip(_text(kind, n, "kind", where))))
+        bad = ~np.isin(kind_, ("", *KINDS))
         if bad.any():
             raise ObservationError(f"{where}: kind must be one of {KINDS} (points "
                                    f"{_name_points(ids, bad)})")
+        given = {"row": row, "col": col, "sigma_row": sigma_row, "sigma_col": sigma_col}
         values = {}
-        for name in ("row", "col", "sigma_row", "sigma_col"):
-            arr = _floats(getattr(self, name), n, name, where)
+        for name, value in given.items():
+            arr = _floats(value, n, name, where)
             bad = ~np.isfinite(arr) | (np.abs(arr) > 1e9)
             if name.startswith("sigma"):
                 bad |= arr <= 0
@@ -293,14 +332,14 @@ class ImagePoints:
                                        f"{_name_points(ids, bad)})")
             arr.flags.writeable = False
             values[name] = arr
-        key = np.char.add(np.char.add(ids, "\x00"), image)
+        key = np.char.add(np.char.add(ids, "\x00"), image_)
         unique, counts = np.unique(key, return_counts=True)
         if (counts > 1).any():
             dup = [k.replace("\x00", " in ") for k in unique[counts > 1][:5].tolist()]
             raise ObservationError(f"{where}: a point is measured twice in one image: {dup}")
-        for name, arr in (("id", ids), ("image", image), ("kind", kind)):
-            arr.flags.writeable = False
-            object.__setattr__(self, name, arr)
+        for name, text in (("id", ids), ("image", image_), ("kind", kind_)):
+            text.flags.writeable = False
+            object.__setattr__(self, name, text)
         for name, arr in values.items():
             object.__setattr__(self, name, arr)
 

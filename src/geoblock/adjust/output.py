@@ -1,248 +1,31 @@
-"""What ``geoblock adjust`` writes: adjusted models, ``report.json``, ``report.md`` and plots.
+"""Deprecated: the report of a block adjustment moved to :mod:`geoblock.report.adjustment`.
 
-:func:`result_dict` is the JSON-safe content of a :class:`~geoblock.adjust.BlockResult`;
-:func:`report_markdown` the papers' tables (GCP/ICP RMSE E/N per image, ICTP relative
-accuracy per overlap, single versus block); :func:`write_result` writes everything into a
-directory atomically: into a temporary sibling first, renamed into place only when every
-file is written, so a failure leaves nothing half-written under the output directory.
+``geoblock.adjust.output.write_result``, ``result_dict`` and ``report_markdown`` still work in
+geoblock 0.2, with a :class:`~geoblock.errors.GeoblockDeprecationWarning`; import them from
+:mod:`geoblock.report.adjustment` (or :mod:`geoblock.report`) instead.
 """
 
 from __future__ import annotations
 
-import json
-import math
-import os
-from collections.abc import Mapping
-from pathlib import Path
+import warnings
 from typing import Any
 
-import numpy as np
+from geoblock.errors import GeoblockDeprecationWarning
 
-from geoblock.adjust.block import BlockResult
-from geoblock.adjust.statistics import AccuracyStats
-from geoblock.report.tables import stats_table
+__all__: list[str] = []
 
-__all__ = ["report_markdown", "result_dict", "write_result"]
+_MOVED = ("report_markdown", "result_dict", "write_result")
 
 
-def _f(x: Any) -> Any:
-    """JSON-safe float (None for NaN/inf)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
+def __getattr__(name: str) -> Any:
+    if name in _MOVED:
+        warnings.warn(
+            f"geoblock.adjust.output.{name} moved to geoblock.report.adjustment.{name}; "
+            "the old name will be removed in geoblock 0.3",
+            GeoblockDeprecationWarning,
+            stacklevel=2,
+        )
+        from geoblock.report import adjustment  # the one upward import: a deprecation shim
 
-
-def _stats(st: AccuracyStats) -> dict[str, Any]:
-    return {k: (_f(v) if isinstance(v, float) else v) for k, v in st.as_dict().items()}
-
-
-def result_dict(result: BlockResult, single: BlockResult | None = None) -> dict[str, Any]:
-    """JSON-safe report of a block adjustment (and of a single adjustment to compare with)."""
-    m = result.measurements
-    p = result.points
-    out: dict[str, Any] = {
-        "mode": result.mode, "dem_control": result.dem_control, "robust": result.robust,
-        "converged": result.converged, "iterations": result.iterations,
-        "sigma0": _f(result.sigma0), "dof": result.dof,
-        "history": [{k: (_f(v) if isinstance(v, float) else v) for k, v in h.items()}
-                    for h in result.history],
-        "notes": list(result.notes),
-        "parameters": {
-            image: [{"name": n, "unit": u, "prior": _f(a), "value": _f(v),
-                     "prior_sigma": _f(ps), "sigma": _f(s)}
-                    for n, u, a, v, ps, s in zip(e.names, e.units, e.prior, e.values,
-                                                 e.prior_sigmas, e.sigmas, strict=True)]
-            for image, e in result.parameters.items()},
-        "statistics": _statistics(result),
-        "measurements": [
-            {"id": str(m.id[i]), "image": str(m.image[i]), "kind": str(m.kind[i]),
-             "row": _f(m.row[i]), "col": _f(m.col[i]), "v_row": _f(m.v_row[i]),
-             "v_col": _f(m.v_col[i]), "weight": _f(m.weight[i]),
-             "redundancy_row": _f(m.redundancy_row[i]),
-             "redundancy_col": _f(m.redundancy_col[i]), "test": _f(m.test[i]),
-             "flagged": bool(m.flagged[i]), "ambiguous": bool(m.ambiguous[i])}
-            for i in range(len(m.id))],
-        "points": [
-            {"id": str(p.id[j]), "kind": str(p.kind[j]), "lon": _f(p.lon[j]),
-             "lat": _f(p.lat[j]), "h": _f(p.h[j]), "images": int(p.images[j]),
-             "dem_height": _f(p.dem_height[j]), "status": str(p.status[j]),
-             "covariance_enu_m2": [[_f(v) for v in row] for row in p.covariance[j]]}
-            for j in range(len(p.id))],
-        "check_points": [
-            {"id": str(result.check.id[i]), "image": str(result.check.image[i]),
-             "kind": str(result.check.kind[i]).lower(), "e": _f(result.check.e[i]),
-             "n": _f(result.check.n[i]), "predicted_sigma_e": _f(result.predicted_sigma[i, 0]),
-             "predicted_sigma_n": _f(result.predicted_sigma[i, 1])}
-            for i in range(len(result.check.id))],
-    }
-    if single is not None:
-        out["single"] = {"sigma0": _f(single.sigma0), "statistics": _statistics(single)}
-    return out
-
-
-def _statistics(result: BlockResult) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for kind in ("gcp", "icp"):
-        out[kind] = {image: _stats(st) for image, st in result.stats_by_image(kind).items()}
-    out["ictp"] = {f"{a} & {b}": _stats(st) for (a, b), st in result.ictp_by_pair().items()}
-    return out
-
-
-def _table(rows: Mapping[str, AccuracyStats], label: str) -> list[str]:
-    return stats_table(rows, labels=(label,)).rstrip("\n").splitlines()
-
-
-def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
-                    title: str = "Block adjustment", figures: Mapping[str, str] | None = None
-                    ) -> str:
-    """The Markdown report: convergence, parameters, the papers' accuracy tables, flags."""
-    r = result
-    lines = [f"# {title}", "",
-             f"Mode **{r.mode}**, DEM control **{r.dem_control}**, robust **{r.robust}**: "
-             f"{'converged' if r.converged else '**NOT converged**'} in {r.iterations} "
-             f"iterations; sigma0 = {r.sigma0:.4g} with {r.dof} degrees of freedom.", ""]
-    for note in r.notes:
-        lines.append(f"- {note}")
-    if r.notes:
-        lines.append("")
-    if r.check is not None and len(r.check.id):
-        lines += ["## Accuracy at control and check points", "",
-                  "Errors: the measured image point located at the point's surveyed height "
-                  "through the adjusted model, minus the surveyed point (metres, local east E "
-                  "and north N).", ""]
-    for kind in ("gcp", "icp"):
-        rows = r.stats_by_image(kind)
-        if rows:
-            lines += [f"**{kind.upper()}s**", "", *_table(rows, "image"), ""]
-    if r.check is not None and len(r.check.id):
-        icp = np.char.lower(r.check.kind.astype(str)) == "icp"
-        if icp.any():
-            actual = math.sqrt(np.nanmean(r.check.e[icp] ** 2 + r.check.n[icp] ** 2))
-            predicted = math.sqrt(np.nanmean(np.sum(r.predicted_sigma[icp] ** 2, axis=1)))
-            lines += [f"ICP RMSE 2D {actual:.2f} m; the posterior covariance predicts "
-                      f"{predicted:.2f} m (parameters, image measurement and survey errors).",
-                      ""]
-    pairs = r.ictp_by_pair()
-    if pairs:
-        lines += ["## Relative accuracy at ICTPs", "",
-                  "Each ICTP measurement ray-traced onto the DEM through its adjusted model; "
-                  "the discrepancy is the distance between the two ground points.", "",
-                  *_table({f"{a} & {b}": st for (a, b), st in pairs.items()}, "overlap"), ""]
-    if single is not None:
-        lines += ["## Single versus block adjustment", "",
-                  "| quantity | single | block |", "|---|---:|---:|"]
-        for kind in ("gcp", "icp"):
-            s_rows, b_rows = single.stats_by_image(kind), r.stats_by_image(kind)
-            for image in b_rows:
-                if image in s_rows:
-                    lines.append(f"| {kind.upper()} RMSE 2D {image} (m) | "
-                                 f"{s_rows[image].rmse_2d:.2f} | {b_rows[image].rmse_2d:.2f} |")
-        s_pairs = single.ictp_by_pair()
-        for key, st in pairs.items():
-            if key in s_pairs:
-                lines.append(f"| ICTP RMSE 2D {key[0]} & {key[1]} (m) | "
-                             f"{s_pairs[key].rmse_2d:.2f} | {st.rmse_2d:.2f} |")
-        lines.append("")
-    lines += ["## Parameters", ""]
-    for image, e in r.parameters.items():
-        if not e.names:
-            lines += [f"**{image}**: no adjusted parameter (held fixed).", ""]
-            continue
-        lines += [f"**{image}**", "", "| parameter | unit | a priori | sigma a priori | adjusted "
-                  "| sigma |", "|---|---|---:|---:|---:|---:|"]
-        for n, u, a, ps, v, s in zip(e.names, e.units, e.prior, e.prior_sigmas, e.values,
-                                     e.sigmas, strict=True):
-            lines.append(f"| {n} | {u} | {a:.6g} | {ps:.3g} | {v:.6g} | {s:.3g} |")
-        lines.append("")
-    m = r.measurements
-    if m.flagged.any():
-        lines += ["## Measurements flagged as blunders", "",
-                  "| point | image | kind | v row (px) | v col (px) | test | note |",
-                  "|---|---|---|---:|---:|---:|---|"]
-        for i in np.flatnonzero(m.flagged)[:200]:
-            note = "two rays: not attributable" if m.ambiguous[i] else ""
-            lines.append(f"| {m.id[i]} | {m.image[i]} | {m.kind[i]} | {m.v_row[i]:.2f} | "
-                         f"{m.v_col[i]:.2f} | {m.test[i]:.1f} | {note} |")
-        lines.append("")
-    lines += ["## Iterations", "", "| iteration | sigma0 | max step (sigma) | damping | "
-              "rejected |", "|---:|---:|---:|---:|---:|"]
-    for h in r.history:
-        lines.append(f"| {h['iteration']} | {h['sigma0']:.4g} | {h['max_step_sigma']:.3g} | "
-                     f"{h['damping']:.3g} | {h['rejected']} |")
-    lines.append("")
-    if figures:
-        lines += ["## Figures", ""]
-        for caption, name in figures.items():
-            lines += [f"![{caption}]({name})", ""]
-    return "\n".join(lines)
-
-
-def _figures(result: BlockResult, folder: Path) -> dict[str, str]:
-    from geoblock.report.figures import error_vector_plot, to_local_en
-
-    out: dict[str, str] = {}
-    chk = result.check
-    if chk is not None and len(chk.id):
-        m = result.measurements
-        for image in result.models:
-            sel = chk.image == image
-            if not sel.any():
-                continue
-            # positions: the measured points located through the adjusted model
-            rows = np.isin(m.id, chk.id[sel]) & (m.image == image) & np.isin(
-                m.kind, ("gcp", "icp"))
-            model = result.models[image]
-            g = model.backproject(m.row[rows], m.col[rows], 0.0)
-            e, n = to_local_en(g.lon, g.lat)
-            # align the rows of the measurements with those of the check table
-            order = {p: k for k, p in enumerate(m.id[rows].tolist())}
-            k = np.array([order[p] for p in chk.id[sel].tolist()])
-            name = f"errors_{image}.png"
-            error_vector_plot(e[k], n[k], chk.e[sel], chk.n[sel], chk.kind[sel],
-                              title=f"{image}: GCP and ICP errors after adjustment",
-                              path=folder / name)
-            out[f"errors at GCPs and ICPs, {image}"] = name
-    ictp = result.ictp
-    if ictp is not None and len(ictp):
-        e, n = to_local_en(ictp.lon_a, ictp.lat_a)
-        name = "ictp_discrepancies.png"
-        error_vector_plot(e, n, ictp.e, ictp.n, "ICTP", title="ICTP discrepancies between images",
-                          path=folder / name)
-        out["ICTP discrepancies"] = name
-    return out
-
-
-def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
-                 single: BlockResult | None = None, title: str = "Block adjustment",
-                 figures: bool = True) -> dict[str, Path]:
-    """Write ``models/<image>.json``, ``report.json``, ``report.md`` and the PNG figures.
-
-    The files are written into a temporary directory beside ``out_dir`` and moved into place
-    at the end (an existing ``out_dir`` is replaced as a whole,
-    :func:`geoblock.io._atomic.atomic_directory`), so an error leaves ``out_dir`` as it was.
-
-    Returns
-    -------
-    dict of str to pathlib.Path
-        What was written, by name.
-    """
-    from geoblock.io import write_model
-    from geoblock.io._atomic import atomic_directory
-
-    out = Path(out_dir)
-    written: dict[str, Path] = {}
-    with atomic_directory(out, "adjustment output ") as tmp:
-        (tmp / "models").mkdir()
-        for image, model in result.models.items():
-            write_model(model, tmp / "models" / f"{image}.json")
-            written[f"model:{image}"] = out / "models" / f"{image}.json"
-        figs = _figures(result, tmp) if figures else {}
-        for name in figs.values():
-            written[f"figure:{name}"] = out / name
-        (tmp / "report.json").write_text(
-            json.dumps(result_dict(result, single), indent=1, allow_nan=False) + "\n",
-            encoding="utf-8")
-        written["report.json"] = out / "report.json"
-        (tmp / "report.md").write_text(report_markdown(result, single, title=title,
-                                                       figures=figs), encoding="utf-8")
-        written["report.md"] = out / "report.md"
-    return written
+        return getattr(adjustment, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -17,6 +17,7 @@ Every feature that fits a model to points (RPCV-0/RPCV-1 refinement, SPOT resect
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from geoblock.adjust.weights import (
 )
 from geoblock.errors import AdjustmentError, SingularSystemError, TooFewPointsError
 from geoblock.models.protocol import SensorModel
-from geoblock.typing import Status
+from geoblock.typing import Float64Array, Status, StatusArray, StrArray
 
 __all__ = ["PointResiduals", "ResectionResult", "resect"]
 
@@ -50,11 +51,11 @@ class PointResiduals:
     through the model, minus the reference ground point, along local east and north.
     """
 
-    id: np.ndarray
-    row: np.ndarray
-    col: np.ndarray
-    e: np.ndarray
-    n: np.ndarray
+    id: StrArray
+    row: Float64Array
+    col: Float64Array
+    e: Float64Array
+    n: Float64Array
     stats: AccuracyStats
 
     @property
@@ -96,15 +97,15 @@ class ResectionResult:
 
     model: SensorModel
     names: tuple[str, ...]
-    values: np.ndarray
-    sigmas: np.ndarray
-    covariance: np.ndarray
-    cofactor: np.ndarray
+    values: Float64Array
+    sigmas: Float64Array
+    covariance: Float64Array
+    cofactor: Float64Array
     sigma0: float
     dof: int
     converged: bool
     iterations: int
-    history: list[dict] = field(repr=False)
+    history: list[dict[str, Any]] = field(repr=False)
     gcp: PointResiduals = field(repr=False)
     icp: PointResiduals | None = field(default=None, repr=False)
 
@@ -197,7 +198,7 @@ def resect(
 
     observed = np.stack([gcps.row, gcps.col], axis=-1)  # (N, 2)
     ground_cov_ecef = _ground_covariance_ecef(gcps)  # (N, 3, 3)
-    history: list[dict] = []
+    history: list[dict[str, Any]] = []
     converged = False
     current = model
     for iteration in range(1, max_iterations + 1):
@@ -255,7 +256,7 @@ def resect(
     )
 
 
-def _check_projected(status: np.ndarray, gcps: ControlPoints, model: SensorModel) -> None:
+def _check_projected(status: StatusArray, gcps: ControlPoints, model: SensorModel) -> None:
     bad = status != Status.CONVERGED
     if bad.any():
         listed = ", ".join(
@@ -268,13 +269,14 @@ def _check_projected(status: np.ndarray, gcps: ControlPoints, model: SensorModel
         )
 
 
-def _ground_covariance_ecef(points: ControlPoints) -> np.ndarray:
+def _ground_covariance_ecef(points: ControlPoints) -> Float64Array:
     """(N, 3, 3) covariance of the ground coordinates in ECEF, metres squared."""
     sig = np.stack([points.sigma_e, points.sigma_n, points.sigma_h], axis=-1)
     return ground_covariance(points.lon, points.lat, sig)
 
 
-def _whitening(model: SensorModel, points: ControlPoints, ground_cov: np.ndarray) -> np.ndarray:
+def _whitening(model: SensorModel, points: ControlPoints, ground_cov: Float64Array
+               ) -> Float64Array:
     """(N, 2, 2) ``L^T`` with ``L L^T = inv(image covariance)`` per point."""
     cov = np.zeros((len(points), 2, 2))
     cov[:, 0, 0] = points.sigma_row**2
@@ -286,7 +288,7 @@ def _whitening(model: SensorModel, points: ControlPoints, ground_cov: np.ndarray
     return np.swapaxes(np.linalg.cholesky(weight), -1, -2)
 
 
-def _sqrt_weight(weight: np.ndarray) -> np.ndarray:
+def _sqrt_weight(weight: Float64Array) -> Float64Array:
     """A square root ``R`` with ``R^T R = weight`` for a PSD weight matrix (zero rows allowed)."""
     values, vectors = np.linalg.eigh(weight)
     values = np.clip(values, 0.0, None)
@@ -294,8 +296,8 @@ def _sqrt_weight(weight: np.ndarray) -> np.ndarray:
 
 
 def _solve(
-    design: np.ndarray, rhs: np.ndarray, names: tuple[str, ...]
-) -> tuple[np.ndarray, np.ndarray]:
+    design: Float64Array, rhs: Float64Array, names: tuple[str, ...]
+) -> tuple[Float64Array, Float64Array]:
     """Least-squares step and ``N^-1`` by SVD of the column-scaled design; rank check."""
     norms = np.linalg.norm(design, axis=0)
     zero = norms == 0
@@ -323,7 +325,8 @@ def _solve(
     return step_scaled / norms, n_inv_scaled / np.outer(norms, norms)
 
 
-def _residuals(model: SensorModel, points: ControlPoints, v: np.ndarray | None) -> PointResiduals:
+def _residuals(model: SensorModel, points: ControlPoints, v: Float64Array | None
+               ) -> PointResiduals:
     """Image residuals (observed - computed) and ground errors (located - reference)."""
     if v is None:
         (r, c), _ = model.project_with_status(points.lon, points.lat, points.h)

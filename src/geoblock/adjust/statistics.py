@@ -25,13 +25,18 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from geoblock import coords
 from geoblock.errors import ObservationError, ShapeMismatchError
-from geoblock.typing import ArrayLike, Status
+from geoblock.typing import ArrayLike, Float64Array, IndexArray, Status, StatusArray, StrArray
+
+if TYPE_CHECKING:
+    from geoblock.dem.protocol import DemSource
+    from geoblock.models.protocol import SensorModel
 
 __all__ = [
     "POINT_KINDS",
@@ -51,12 +56,12 @@ POINT_KINDS = ("GCP", "ICP", "TP", "ICTP")
 
 
 # --------------------------------------------------------------------------- helpers
-def _signed_max(x: np.ndarray) -> float:
+def _signed_max(x: Float64Array) -> float:
     """The value of largest magnitude, with its sign (NaN for no values)."""
     return float(x[np.argmax(np.abs(x))]) if x.size else float("nan")
 
 
-def _vector(name: str, value: ArrayLike, n: int | None = None, *, where: str) -> np.ndarray:
+def _vector(name: str, value: ArrayLike, n: int | None = None, *, where: str) -> Float64Array:
     """``value`` as a 1-D float64 array of length ``n`` (a scalar is repeated)."""
     try:
         arr = np.asarray(value, dtype=np.float64)
@@ -72,7 +77,7 @@ def _vector(name: str, value: ArrayLike, n: int | None = None, *, where: str) ->
 
 
 def _labels(name: str, value: ArrayLike | None, n: int, *, where: str,
-            default: str = "") -> np.ndarray:
+            default: str = "") -> StrArray:
     """``value`` as a 1-D array of ``n`` strings (a scalar or None is repeated)."""
     if value is None:
         return np.full(n, default, dtype=object).astype(str)
@@ -84,7 +89,7 @@ def _labels(name: str, value: ArrayLike | None, n: int, *, where: str,
     return arr.astype(str)
 
 
-def _kinds(value: ArrayLike, n: int, *, where: str, ids: np.ndarray | None = None) -> np.ndarray:
+def _kinds(value: ArrayLike, n: int, *, where: str, ids: StrArray | None = None) -> StrArray:
     """Point kinds normalised to upper case; unknown kinds raise, naming the points."""
     kinds = np.char.upper(np.char.strip(_labels("kind", value, n, where=where)))
     bad = ~np.isin(kinds, POINT_KINDS)
@@ -143,30 +148,31 @@ class AccuracyStats:
         ShapeMismatchError
             ``de`` and ``dn`` have different shapes.
         """
-        de = np.asarray(de, dtype=np.float64)
-        dn = np.asarray(dn, dtype=np.float64)
-        if de.shape != dn.shape:
+        e_all = np.asarray(de, dtype=np.float64)
+        n_all = np.asarray(dn, dtype=np.float64)
+        if e_all.shape != n_all.shape:
             raise ShapeMismatchError(
-                f"AccuracyStats.from_errors: de has shape {de.shape} but dn has shape {dn.shape}"
+                f"AccuracyStats.from_errors: de has shape {e_all.shape} but dn has shape "
+                f"{n_all.shape}"
             )
-        de, dn = de.ravel(), dn.ravel()
-        ok = np.isfinite(de) & np.isfinite(dn)
-        de, dn = de[ok], dn[ok]
-        if de.size == 0:
+        e_all, n_all = e_all.ravel(), n_all.ravel()
+        ok = np.isfinite(e_all) & np.isfinite(n_all)
+        e, n = e_all[ok], n_all[ok]
+        if e.size == 0:
             nan = float("nan")
             return cls(0, nan, nan, nan, nan, nan, nan, nan, nan)
-        rmse_e = float(np.sqrt(np.mean(de**2)))
-        rmse_n = float(np.sqrt(np.mean(dn**2)))
+        rmse_e = float(np.sqrt(np.mean(e**2)))
+        rmse_n = float(np.sqrt(np.mean(n**2)))
         return cls(
-            n=int(de.size),
+            n=int(e.size),
             rmse_e=rmse_e,
             rmse_n=rmse_n,
             rmse_2d=float(np.hypot(rmse_e, rmse_n)),
-            mean_e=float(de.mean()),
-            mean_n=float(dn.mean()),
-            max_e=_signed_max(de),
-            max_n=_signed_max(dn),
-            max_2d=float(np.max(np.hypot(de, dn))),
+            mean_e=float(e.mean()),
+            mean_n=float(n.mean()),
+            max_e=_signed_max(e),
+            max_n=_signed_max(n),
+            max_2d=float(np.max(np.hypot(e, n))),
         )
 
     @classmethod
@@ -229,14 +235,14 @@ class ImageResidualStats:
         ShapeMismatchError
             ``row`` and ``col`` have different shapes.
         """
-        row = np.asarray(row, dtype=np.float64)
-        col = np.asarray(col, dtype=np.float64)
-        if row.shape != col.shape:
+        rows = np.asarray(row, dtype=np.float64)
+        cols = np.asarray(col, dtype=np.float64)
+        if rows.shape != cols.shape:
             raise ShapeMismatchError(
-                f"ImageResidualStats.from_residuals: row has shape {row.shape} but col has "
-                f"shape {col.shape}"
+                f"ImageResidualStats.from_residuals: row has shape {rows.shape} but col has "
+                f"shape {cols.shape}"
             )
-        a = AccuracyStats.from_errors(row, col)  # same arithmetic, other axes and units
+        a = AccuracyStats.from_errors(rows, cols)  # same arithmetic, other axes and units
         return cls(a.n, a.rmse_e, a.rmse_n, a.rmse_2d, a.mean_e, a.mean_n, a.max_e, a.max_n,
                    a.max_2d)
 
@@ -253,7 +259,7 @@ def ground_errors(
     *,
     h: ArrayLike | None = None,
     h_ref: ArrayLike | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[Float64Array, Float64Array, Float64Array]:
     """Errors of estimated ground points against reference points, in metres east/north/up.
 
     Parameters
@@ -299,7 +305,7 @@ def ground_errors(
 
 
 # --------------------------------------------------------------------------- grouping
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class PointErrors:
     """Per-point errors with their kind and image: the input of grouped statistics and tables.
 
@@ -330,27 +336,37 @@ class PointErrors:
         An unknown point kind (the message names the points).
     """
 
-    id: np.ndarray
-    kind: np.ndarray
-    e: np.ndarray
-    n: np.ndarray
-    u: np.ndarray | None = None
-    row: np.ndarray | None = None
-    col: np.ndarray | None = None
-    image: np.ndarray | None = None
+    id: StrArray
+    kind: StrArray
+    e: Float64Array
+    n: Float64Array
+    u: Float64Array
+    row: Float64Array
+    col: Float64Array
+    image: StrArray
 
-    def __post_init__(self) -> None:
+    def __init__(
+        self,
+        id: ArrayLike,
+        kind: ArrayLike,
+        e: ArrayLike,
+        n: ArrayLike,
+        u: ArrayLike | None = None,
+        row: ArrayLike | None = None,
+        col: ArrayLike | None = None,
+        image: ArrayLike | None = None,
+    ) -> None:
         where = "PointErrors"
-        ids = np.atleast_1d(np.asarray(self.id)).astype(str)
+        ids = np.atleast_1d(np.asarray(id)).astype(str)
         if ids.ndim != 1:
             raise ShapeMismatchError(f"{where}: id must be one-dimensional, got shape {ids.shape}")
         size = ids.shape[0]
-        values: dict[str, Any] = {"id": ids, "kind": _kinds(self.kind, size, where=where, ids=ids)}
-        for name in ("e", "n", "u", "row", "col"):
-            raw = getattr(self, name)
+        values: dict[str, NDArray[Any]] = {
+            "id": ids, "kind": _kinds(kind, size, where=where, ids=ids)}
+        for name, raw in (("e", e), ("n", n), ("u", u), ("row", row), ("col", col)):
             values[name] = (np.full(size, np.nan) if raw is None
                             else _vector(name, raw, size, where=where))
-        values["image"] = _labels("image", self.image, size, where=where)
+        values["image"] = _labels("image", image, size, where=where)
         for name, arr in values.items():
             arr = np.array(arr)
             arr.flags.writeable = False
@@ -441,8 +457,16 @@ class PointErrors:
         return self._grouped((self.image, self.kind), None, image_space, key_single=False,
                              order=order)
 
-    def _grouped(self, columns, wanted, image_space, *, key_single, order=None):
-        keys = list(zip(*(c.tolist() for c in columns), strict=True))
+    def _grouped(
+        self,
+        columns: tuple[StrArray, ...],
+        wanted: Sequence[tuple[str, ...]] | None,
+        image_space: bool,
+        *,
+        key_single: bool,
+        order: Sequence[tuple[str, ...]] | None = None,
+    ) -> dict[Any, Any]:
+        keys: list[tuple[str, ...]] = list(zip(*(c.tolist() for c in columns), strict=True))
         present = set(keys)
         if wanted is None:
             wanted = ([k for k in order if k in present] if order is not None
@@ -456,9 +480,10 @@ class PointErrors:
                     f"{sorted(k[0] if key_single else k for k in present)}"
                 )
         stacked = np.array(keys, dtype=object).reshape(len(keys), len(columns))
-        out = {}
+        out: dict[Any, Any] = {}
         for key in wanted:
             mask = np.all(stacked == np.array(key, dtype=object), axis=1)
+            value: AccuracyStats | ImageResidualStats
             if image_space:
                 value = ImageResidualStats.from_residuals(self.row[mask], self.col[mask])
             else:
@@ -491,32 +516,32 @@ class IctpDiscrepancies:
         Points measured in a single image (no discrepancy; not in the arrays above).
     """
 
-    id: np.ndarray
-    image_a: np.ndarray
-    image_b: np.ndarray
-    lon_a: np.ndarray
-    lat_a: np.ndarray
-    h_a: np.ndarray
-    lon_b: np.ndarray
-    lat_b: np.ndarray
-    h_b: np.ndarray
-    e: np.ndarray
-    n: np.ndarray
-    u: np.ndarray
-    status_a: np.ndarray
-    status_b: np.ndarray
-    unpaired: np.ndarray
+    id: StrArray
+    image_a: StrArray
+    image_b: StrArray
+    lon_a: Float64Array
+    lat_a: Float64Array
+    h_a: Float64Array
+    lon_b: Float64Array
+    lat_b: Float64Array
+    h_b: Float64Array
+    e: Float64Array
+    n: Float64Array
+    u: Float64Array
+    status_a: StatusArray
+    status_b: StatusArray
+    unpaired: StrArray
 
     def __len__(self) -> int:
         return int(self.id.shape[0])
 
     @property
-    def distance_2d(self) -> np.ndarray:
+    def distance_2d(self) -> Float64Array:
         """(M,) horizontal distance between the two ground points, metres."""
         return np.hypot(self.e, self.n)
 
     @property
-    def distance_3d(self) -> np.ndarray:
+    def distance_3d(self) -> Float64Array:
         """(M,) 3D distance between the two ground points, metres."""
         return np.sqrt(self.e**2 + self.n**2 + self.u**2)
 
@@ -548,12 +573,12 @@ class IctpDiscrepancies:
 
 
 def ictp_accuracy(
-    models: Mapping[str, Any],
+    models: Mapping[str, SensorModel],
     id: ArrayLike,
     image: ArrayLike,
     row: ArrayLike,
     col: ArrayLike,
-    dem: Any,
+    dem: DemSource | float,
     **localize_options: Any,
 ) -> IctpDiscrepancies:
     """Relative accuracy between images at independent check tie points (Teo et al. 2010).
@@ -623,8 +648,8 @@ def ictp_accuracy(
             lon[sel], lat[sel], h[sel], status[sel] = g.lon, g.lat, g.h, s
 
     # every pair of images measuring the same point
-    idx_a: list[np.ndarray] = []
-    idx_b: list[np.ndarray] = []
+    idx_a: list[IndexArray] = []
+    idx_b: list[IndexArray] = []
     for i, name_a in enumerate(names):
         sel_a = np.flatnonzero(images == name_a)
         for name_b in names[i + 1:]:
@@ -649,8 +674,8 @@ def ictp_accuracy(
 
 
 # --------------------------------------------------------------------------- geometry helper
-def distance_from_image_centre(model: Any, lon: ArrayLike, lat: ArrayLike, h: ArrayLike,
-                               ) -> np.ndarray:
+def distance_from_image_centre(model: SensorModel, lon: ArrayLike, lat: ArrayLike,
+                               h: ArrayLike) -> Float64Array:
     """Planimetric distance of ground points from the image centre, metres (Aguilar Fig. 4).
 
     The centre pixel ``((rows - 1) / 2, (cols - 1) / 2)`` is backprojected at each point's
@@ -669,10 +694,10 @@ def distance_from_image_centre(model: Any, lon: ArrayLike, lat: ArrayLike, h: Ar
     ndarray, (*S,)
         Metres; NaN where the centre cannot be backprojected at that height.
     """
-    lon, lat, h = (np.asarray(v, dtype=np.float64) for v in (lon, lat, h))
+    lon_, lat_, h_ = (np.asarray(v, dtype=np.float64) for v in (lon, lat, h))
     rows, cols = model.shape
-    centre, _ = model.backproject_with_status((rows - 1) / 2.0, (cols - 1) / 2.0, h)
-    de, dn, _ = coords.enu_offsets(centre.lon, centre.lat, centre.h, lon, lat, h)
+    centre, _ = model.backproject_with_status((rows - 1) / 2.0, (cols - 1) / 2.0, h_)
+    de, dn, _ = coords.enu_offsets(centre.lon, centre.lat, centre.h, lon_, lat_, h_)
     return np.hypot(de, dn)
 
 
@@ -694,11 +719,11 @@ class ConfidenceInterval:
         ``"t"`` or ``"percentile"`` (see :func:`confidence_interval`).
     """
 
-    mean: Any
-    low: Any
-    high: Any
-    std: Any
-    n: Any
+    mean: float | Float64Array
+    low: float | Float64Array
+    high: float | Float64Array
+    std: float | Float64Array
+    n: int | NDArray[np.intp]
     level: float
     method: str
 
@@ -765,8 +790,8 @@ def confidence_interval(values: ArrayLike, *, level: float = 0.95, method: str =
         for j in np.flatnonzero(n > 0):  # per column: K is small (a few GCP counts)
             low[j], high[j] = np.percentile(v[ok[:, j], j], [50 * (1 - level), 50 * (1 + level)])
 
-    def out(x):
-        return x.item() if scalar else x
+    def out(x: Float64Array) -> float | Float64Array:
+        return float(x.item()) if scalar else x
 
     return ConfidenceInterval(out(mean), out(low), out(high), out(std),
                               int(n[0]) if scalar else n, float(level), method)

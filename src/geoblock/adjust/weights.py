@@ -4,18 +4,21 @@ parameters and ground points, and the diagnosis of undetermined unknowns."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoblock import coords
-from geoblock.typing import ArrayLike
+from geoblock.typing import ArrayLike, Float64Array, StrArray
+
+if TYPE_CHECKING:
+    from geoblock.models.protocol import SensorModel
 
 __all__ = ["check_measured_geometry", "check_not_degenerate", "ground_covariance", "prior_weight",
            "undetermined"]
 
 
-def prior_weight(covariance: np.ndarray) -> np.ndarray:
+def prior_weight(covariance: Float64Array) -> Float64Array:
     """(K, K) weight matrix of a-priori parameter values: the inverse of the covariance on the
     parameters whose sigma is finite, zero rows and columns for free (infinite-sigma) ones."""
     finite = np.isfinite(np.diag(covariance))
@@ -27,7 +30,7 @@ def prior_weight(covariance: np.ndarray) -> np.ndarray:
 
 
 def ground_covariance(lon: ArrayLike, lat: ArrayLike, sigma_enu: ArrayLike,
-                      frame_rotation: np.ndarray | None = None) -> np.ndarray:
+                      frame_rotation: Float64Array | None = None) -> Float64Array:
     """(N, 3, 3) covariance of ground points whose sigmas are given along local east, north
     and up at each point, metres squared.
 
@@ -49,7 +52,7 @@ def ground_covariance(lon: ArrayLike, lat: ArrayLike, sigma_enu: ArrayLike,
     return rot @ (sig[:, :, None] ** 2 * np.eye(3)) @ np.swapaxes(rot, -1, -2)
 
 
-def undetermined(matrix: np.ndarray, names: Sequence[str], tolerance: float = 1e-9, *,
+def undetermined(matrix: Float64Array, names: Sequence[str], tolerance: float = 1e-9, *,
                  design: bool = False) -> tuple[tuple[str, ...], int]:
     """The unknowns a least-squares problem cannot determine.
 
@@ -99,7 +102,7 @@ COINCIDENT_PX = 1.0
 COLLINEAR_RATIO = 1e-3
 
 
-def check_measured_geometry(ids: Sequence[str], row: ArrayLike, col: ArrayLike,
+def check_measured_geometry(ids: Sequence[str] | StrArray, row: ArrayLike, col: ArrayLike,
                             free: Sequence[str], where: str) -> None:
     """Refuse control measurements whose image geometry cannot determine ``n_free`` free
     parameters: all at one pixel (only a shift can be determined), or on one line (an
@@ -150,7 +153,7 @@ def check_measured_geometry(ids: Sequence[str], row: ArrayLike, col: ArrayLike,
             "needs three that are not collinear)", free)
 
 
-def check_not_degenerate(before: Any, after: Any, lon: ArrayLike, lat: ArrayLike,
+def check_not_degenerate(before: SensorModel, after: SensorModel, lon: ArrayLike, lat: ArrayLike,
                          h: ArrayLike, where: str, limit: float = 5.0) -> None:
     """Refuse an adjusted model that collapses or blows up the image geometry: the area
     scale of its ground -> image mapping (``|det d(row, col)/d(E, N)|`` at the control
@@ -164,7 +167,7 @@ def check_not_degenerate(before: Any, after: Any, lon: ArrayLike, lat: ArrayLike
     """
     from geoblock.errors import AdjustmentError
 
-    def area(model: Any) -> np.ndarray:
+    def area(model: SensorModel) -> Float64Array:
         rot = coords.enu_rotation(lon, lat)  # ECEF -> ENU
         jac = model.partials_ground(lon, lat, h) @ np.swapaxes(rot, -1, -2)  # d(r,c)/d(e,n,u)
         return np.abs(np.linalg.det(jac[..., :2]))

@@ -28,8 +28,9 @@ __all__ = ["adjust"]
 @click.option("--max-iterations", type=click.IntRange(min=1), default=None,
               help="Iteration cap of Gauss-Newton (default 30).")
 @click.option("--no-figures", is_flag=True, default=False, help="Do not draw the PNG figures.")
-def adjust(block_file, out_dir, mode, compare_single, dem_control, robust, collocation,
-           max_iterations, no_figures) -> None:
+def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_single: bool,
+           dem_control: str | None, robust: str | None, collocation: bool | None,
+           max_iterations: int | None, no_figures: bool) -> None:
     """Adjust the block described by BLOCK.toml and write the adjusted models and a report.
 
     The block file names the images (sensor-model files), the parameter set or image-space
@@ -54,8 +55,8 @@ def adjust(block_file, out_dir, mode, compare_single, dem_control, robust, collo
     from pathlib import Path
 
     from geoblock.adjust.block import adjust as run
-    from geoblock.adjust.output import write_result
     from geoblock.io.blocks import open_block
+    from geoblock.report.adjustment import write_result
 
     opened = open_block(block_file)
     options = dict(opened.options)
@@ -71,14 +72,17 @@ def adjust(block_file, out_dir, mode, compare_single, dem_control, robust, collo
     single = None
     if compare_single and options.get("mode", "block") == "block":
         single = run(opened.block, progress=say, **{**options, "mode": "single"})
+    out: str | Path
     if out_dir is None:
-        out_dir = opened.spec.outputs.get("directory") or Path(block_file).resolve().parent / \
+        out = opened.spec.outputs.get("directory") or Path(block_file).resolve().parent / \
             "adjusted"
+    else:
+        out = out_dir
     title = f"Block adjustment: {opened.spec.name or Path(block_file).name} " \
             f"(method {opened.spec.method})"
-    written = write_result(result, out_dir, single=single, title=title, figures=not no_figures)
+    written = write_result(result, out, single=single, title=title, figures=not no_figures)
     click.echo(result.report_text())
     if single is not None:
         click.echo("single adjustment, for comparison:")
         click.echo(single.report_text())
-    click.echo(f"wrote {len(written)} files to {out_dir}")
+    click.echo(f"wrote {len(written)} files to {out}")

@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from geoblock.dem.protocol import DemSource
 from geoblock.dem.raster import MosaicDem, RasterDem
 from geoblock.io.dem import open_dem
 
@@ -41,7 +42,7 @@ def _describe_raster(dem: RasterDem) -> dict[str, Any]:
     }
 
 
-def describe_dem(dem: Any) -> dict[str, Any]:
+def describe_dem(dem: DemSource) -> dict[str, Any]:
     """The facts ``geoblock dem-info`` reports, JSON-safe.
 
     Returns

@@ -41,7 +41,8 @@ def demo(outdir, size, seed, force) -> None:
     """
     from pathlib import Path
 
-    from geoblock.simulate.demo import DemoOutdirError, run_demo
+    from geoblock.errors import DemoOutdirError
+    from geoblock.workflows.demo import run_demo
 
     path = Path(outdir)
     try:

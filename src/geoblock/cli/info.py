@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
 from geoblock import coords
 from geoblock.cli.options import json_opt, model_arg, model_name_opt, open_model_arg
+from geoblock.pixels import image_domain
+
+if TYPE_CHECKING:
+    from geoblock.models.protocol import SensorModel
 
 __all__ = ["info", "model_info"]
 
@@ -23,7 +27,7 @@ def _num(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def model_info(model: Any, h: float | None = None) -> dict[str, Any]:
+def model_info(model: SensorModel, h: float | None = None) -> dict[str, Any]:
     """The facts ``geoblock info`` reports about ``model``, JSON-safe.
 
     Uses only the :class:`~geoblock.models.SensorModel` protocol.
@@ -50,8 +54,8 @@ def model_info(model: Any, h: float | None = None) -> dict[str, Any]:
         h = 0.5 * (h_min + h_max)
     params = model.parameters
 
-    # Outer pixel edges: the image covers [-0.5, rows - 0.5) x [-0.5, cols - 0.5).
-    r0, r1, c0, c1 = -0.5, rows - 0.5, -0.5, cols - 0.5
+    # Outer pixel edges: the half-open box the image covers.
+    r0, c0, r1, c1 = image_domain((rows, cols))
     # Centre pixel and its neighbours one row down and one column right.
     rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
     row = np.array([r0, r0, r1, r1, rc, rc + 1.0, rc])
@@ -175,7 +179,7 @@ def info(model_path: str, model_name: str | None, height: float | None, as_json:
     \b
     Examples:
       geoblock info scene.json
-      geoblock info scene.json --model synthetic-affine --json
+      geoblock info DIM_SPOT6_P_XXXX.XML --model rpc --json
     """
     model = open_model_arg(model_path, model_name)
     data = {"path": model_path, **model_info(model, height)}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import click
 
@@ -19,6 +20,10 @@ from geoblock.cli.options import (
     points_source,
 )
 
+if TYPE_CHECKING:
+    from geoblock.models.crop import CroppedModel
+    from geoblock.models.protocol import SensorModel
+
 __all__ = ["localize"]
 
 
@@ -31,7 +36,7 @@ def _nodata(value: str) -> str | float:
         return value
 
 
-def _crop_to_scene_edge(model, crop_offset: tuple[float, float]):
+def _crop_to_scene_edge(model: SensorModel, crop_offset: tuple[float, float]) -> CroppedModel:
     """The crop of ``model``'s scene at ``--crop-offset`` with no raster to give its shape: it
     reaches to the scene's far edge. An offset outside the scene is refused (CropError)."""
     from geoblock.errors import CropError
@@ -79,8 +84,11 @@ def _crop_to_scene_edge(model, crop_offset: tuple[float, float]):
 @no_crop_opt
 @output_opt
 @model_name_opt
-def localize(model_path, points, dem_source, vertical, geoid, nodata, interpolation, method,
-             tolerance, fill_height, image, crop_offset, no_crop, output, model_name) -> None:
+def localize(model_path: str, points: str, dem_source: str, vertical: str | None,
+             geoid: str | None, nodata: str, interpolation: str, method: str, tolerance: float,
+             fill_height: float | None, image: str | None,
+             crop_offset: tuple[float, float] | None, no_crop: bool, output: str,
+             model_name: str | None) -> None:
     """Intersect the lines of sight of image points of MODEL with the terrain of DEM.
 
     POINTS is a CSV file with a header line holding at least the columns row, col (pixels;

@@ -29,7 +29,7 @@ import threading
 import traceback
 import warnings
 from collections.abc import Iterator, Sequence
-from typing import Any
+from typing import Any, TextIO
 
 import click
 
@@ -192,7 +192,8 @@ class GeoblockGroup(click.Group):
             warnings.showwarning = self._show_warning
             return super().main(*args, **kwargs)
 
-    def _show_warning(self, message, category, filename, lineno, file=None, line=None) -> None:
+    def _show_warning(self, message: Warning | str, category: type[Warning], filename: str,
+                      lineno: int, file: TextIO | None = None, line: str | None = None) -> None:
         if issubclass(category, _GEOBLOCK_WARNINGS):
             if self.quiet:
                 return
@@ -298,7 +299,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     cli.add_command(mosaic)
     cli.add_command(simulate)
     cli.add_command(demo)
-    return cli  # type: ignore[return-value]
+    return cli
 
 
 #: The group over the process-wide plugin manager (its plugin commands load on first use), for

@@ -31,8 +31,9 @@ __all__ = ["mosaic"]
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
-def mosaic(output, orthos, method, feather_px, contribution_path, nodata, chunks, allow_empty,
-           scheduler, cog, progress) -> None:
+def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
+           contribution_path: str | None, nodata: float | None, chunks: int, allow_empty: bool,
+           scheduler: str, cog: bool, progress: bool) -> None:
     """Mosaic the ORTHO GeoTIFFs (in priority order) onto their union grid and write OUT.
 
     The orthos must share CRS, resolution and pixel phase (nothing is reprojected or

@@ -9,9 +9,14 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
+
+if TYPE_CHECKING:
+    import pyproj
+
+    from geoblock.models.protocol import SensorModel
 
 __all__ = [
     "bounds_value",
@@ -104,14 +109,15 @@ def points_source(points: str) -> str:
     return points
 
 
-def open_model_arg(model_path: str, model_name: str | None, **options: Any):
+def open_model_arg(model_path: str, model_name: str | None, **options: Any) -> SensorModel:
     """Open ``MODEL`` with :func:`geoblock.open_model` (errors become one ``Error:`` line)."""
     from geoblock.io import open_model
 
     return open_model(model_path, model=model_name, **options)
 
 
-def model_for_image_arg(model, image, crop_offset: tuple | None, no_crop: bool):
+def model_for_image_arg(model: SensorModel, image: Any,
+                        crop_offset: tuple[float, float] | None, no_crop: bool) -> SensorModel:
     """``model`` reconciled with ``image`` (:func:`geoblock.models.crop.model_for_image`).
 
     Applies the crop offset of ``--crop-offset`` or of the image's pixel-unit geotransform (and
@@ -137,21 +143,24 @@ def model_for_image_arg(model, image, crop_offset: tuple | None, no_crop: bool):
 
 # ---------------------------------------------------------------------- option checks
 # click callbacks: a bad value becomes click's one-line usage error naming the option (exit 2)
-def positive_float(ctx: click.Context, param: click.Parameter, value: float | None):
+def positive_float(ctx: click.Context, param: click.Parameter, value: float | None
+                   ) -> float | None:
     """A float option that must be positive and finite (None passes)."""
     if value is not None and not (math.isfinite(value) and value > 0):
         raise click.BadParameter(f"{value!r} is not a positive finite number.", ctx, param)
     return value
 
 
-def nonnegative_float(ctx: click.Context, param: click.Parameter, value: float | None):
+def nonnegative_float(ctx: click.Context, param: click.Parameter, value: float | None
+                      ) -> float | None:
     """A float option that must be finite and >= 0 (None passes)."""
     if value is not None and not (math.isfinite(value) and value >= 0):
         raise click.BadParameter(f"{value!r} is not a finite number >= 0.", ctx, param)
     return value
 
 
-def crs_value(ctx: click.Context, param: click.Parameter, value: str | None):
+def crs_value(ctx: click.Context, param: click.Parameter, value: str | None,
+              ) -> pyproj.CRS | None:
     """A CRS option (EPSG code, WKT, PROJ string) read by pyproj; a ``pyproj.CRS`` or None."""
     if value is None:
         return None
@@ -165,7 +174,8 @@ def crs_value(ctx: click.Context, param: click.Parameter, value: str | None):
                                  param) from exc
 
 
-def finite_values(ctx: click.Context, param: click.Parameter, value: tuple | None):
+def finite_values(ctx: click.Context, param: click.Parameter,
+                  value: tuple[float, ...] | None) -> tuple[float, ...] | None:
     """A multi-value float option whose values must be finite (None/() gives None)."""
     if not value:
         return None
@@ -174,7 +184,9 @@ def finite_values(ctx: click.Context, param: click.Parameter, value: tuple | Non
     return tuple(float(v) for v in value)
 
 
-def bounds_value(ctx: click.Context, param: click.Parameter, value: tuple | None):
+def bounds_value(ctx: click.Context, param: click.Parameter,
+                 value: tuple[float, float, float, float] | None,
+                 ) -> tuple[float, ...] | None:
     """``XMIN YMIN XMAX YMAX``: finite, ``xmin < xmax`` and ``ymin < ymax`` (None/() passes)."""
     if not value:
         return None

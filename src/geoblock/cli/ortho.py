@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import click
 
 from geoblock.cli.options import (
@@ -14,6 +16,13 @@ from geoblock.cli.options import (
     positive_float,
 )
 from geoblock.ortho.grid import MAX_PIXELS
+
+if TYPE_CHECKING:
+    import pyproj
+
+    from geoblock.dem.protocol import DemSource
+    from geoblock.models.protocol import SensorModel
+    from geoblock.ortho.grid import OutputGrid
 
 __all__ = ["ortho"]
 
@@ -65,9 +74,12 @@ __all__ = ["ortho"]
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
-def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offset, no_crop, crs,
-          resolution, bounds, resampling, tolerance, chunks, max_pixels, allow_empty, scheduler,
-          cog, progress) -> None:
+def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, geoid: str | None,
+          model_file: str | None, crop_offset: tuple[float, float] | None, no_crop: bool,
+          crs: pyproj.CRS | None, resolution: float | None,
+          bounds: tuple[float, float, float, float] | None,
+          resampling: str, tolerance: float, chunks: int, max_pixels: int, allow_empty: bool,
+          scheduler: str, cog: bool, progress: bool) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
 
     Every output pixel centre goes to the ground, takes its height from DEM (ellipsoidal;
@@ -106,10 +118,10 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offse
     model = model_for_image_arg(model, source, crop_offset, no_crop)
     dem = open_dem(dem_source, vertical=dem_vertical, geoid=geoid)
     if bounds and resolution is not None and crs is not None:
-        grid = OutputGrid.from_bounds(crs, tuple(bounds), resolution)  # gdalwarp -te/-tr
+        grid = OutputGrid.from_bounds(crs, bounds, resolution)  # gdalwarp -te/-tr
     else:
         grid = OutputGrid.for_model(model, dem, crs=crs, resolution=resolution,
-                                    bounds=tuple(bounds) if bounds else None,
+                                    bounds=bounds or None,
                                     align=not bounds, max_pixels=None)
     names = {"resolution": "--res", "bounds": "--bounds", "max_pixels": "--max-pixels"}
     grid.check(max_pixels=max_pixels, names=names)  # before the graph: 10^20 pixels is no job
@@ -135,18 +147,19 @@ def ortho(image, output, dem_source, dem_vertical, geoid, model_file, crop_offse
                err=True)
 
 
-def _why_empty(model, dem, grid, bounds_given: bool) -> str:
+def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_given: bool) -> str:
     """The likely reason an ortho has no valid pixel, for the error message."""
     import math
 
     import numpy as np
 
     from geoblock import coords
+    from geoblock.ortho.grid import image_outline
 
     try:
         lo, hi = model.height_range
         mid = 0.5 * (lo + hi) if math.isfinite(lo) and math.isfinite(hi) else 0.0
-        fp = model.footprint(mid, n=32)
+        fp = image_outline(model, mid, n=32)
         lon, lat = np.asarray(fp.lon), np.asarray(fp.lat)
         ok = np.isfinite(lon) & np.isfinite(lat)
         lon, lat = lon[ok], lat[ok]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import click
 
@@ -12,20 +12,35 @@ from geoblock.cli.options import json_opt
 __all__ = ["plugins", "plugins_report"]
 
 
-def plugins_report(group: click.Group | None) -> dict[str, Any]:
+@runtime_checkable
+class _PluginCommands(Protocol):
+    """What ``geoblock plugins`` asks of the root group (a
+    :class:`~geoblock.cli.main.GeoblockGroup`, which imports this module: no import back)."""
+
+    plugin_commands: dict[str, list[str]]
+    broken_plugins: dict[str, str]
+
+    @property
+    def explicit_plugin_manager(self) -> Any: ...
+
+    def load_plugin_commands(self) -> None: ...
+
+
+def plugins_report(group: click.Command | None) -> dict[str, Any]:
     """What ``geoblock plugins --json`` prints.
 
     ``{"plugins": [{name, distribution, version, hooks, models, commands, error}],
     "models": [{name, plugin}]}``, plugins and models sorted by name. ``error`` is ``null``
-    unless the plugin's ``geoblock_register_commands`` failed.
+    unless the plugin's ``geoblock_register_commands`` failed. ``group`` is the root
+    ``geoblock`` group, whose plugin commands and plugin manager are listed (another command
+    or None: the process-wide plugin manager, no commands).
     """
-    from geoblock.cli.main import GeoblockGroup
     from geoblock.plugins import list_plugins
 
     pm = None
     commands: dict[str, list[str]] = {}
     broken: dict[str, str] = {}
-    if isinstance(group, GeoblockGroup):
+    if isinstance(group, _PluginCommands):
         group.load_plugin_commands()
         pm = group.explicit_plugin_manager
         commands, broken = group.plugin_commands, group.broken_plugins
@@ -97,14 +112,15 @@ def plugins(ctx: click.Context, as_json: bool) -> None:
     then every registered model name (what 'geoblock info --model NAME' and
     'geoblock.open_model(path, model=NAME)' accept) with the plugin providing it, and the
     commands plugins add to this command line. GEOBLOCK_PLUGINS=a,b restricts which
-    entry points load.
+    entry points load; GEOBLOCK_PLUGIN_MODULES=pkg.mod,... loads extra plugin modules by
+    import name (e.g. geoblock.testing.plugin, the test kit's synthetic models).
 
     \b
     Examples:
       geoblock plugins
       geoblock plugins --json | jq -r '.models[].name'
     """
-    report = plugins_report(ctx.find_root().command)  # type: ignore[arg-type]
+    report = plugins_report(ctx.find_root().command)
     if as_json:
         click.echo(json.dumps(report, indent=2))
     else:

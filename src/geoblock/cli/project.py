@@ -36,7 +36,9 @@ def status_names(status: np.ndarray) -> np.ndarray:
     return np.where(status < _STATUS_NAMES.size, known, status.astype(str))
 
 
-def _run(model_path, model_name, points, output, inputs, outputs, method, what) -> None:
+def _run(model_path: str, model_name: str | None, points: str, output: str,
+         inputs: tuple[str, str, str], outputs: tuple[str, ...], method: str, what: str,
+         ) -> None:
     from geoblock.io import read_points, write_points
 
     model = open_model_arg(model_path, model_name)

@@ -10,36 +10,39 @@ RPC) and their messages (a warning such as a fold/refit report) are printed with
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
 from geoblock.cli.options import model_arg, model_name_opt, open_model_arg
 
+if TYPE_CHECKING:
+    from geoblock.adjust import ControlPoints, ResectionResult
+    from geoblock.models.protocol import SensorModel
+
 __all__ = ["refine"]
 
 
-def _write_spec(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]):
+def _write_spec(ctx: click.Context, param: click.Parameter, values: tuple[str, ...],
+                ) -> tuple[tuple[str | None, str], ...]:
     """``FORMAT:PATH`` -> ``(format, path)``; a bare PATH infers the format from its suffix."""
-    out = []
+    out: list[tuple[str | None, str]] = []
     for value in values:
         fmt, sep, path = value.partition(":")
         if not sep:
-            fmt, path = None, value
+            fmt, path = "", value
         if (sep and not fmt.strip()) or not path.strip():
             raise click.BadParameter(
                 f"expected FORMAT:PATH (for example json:out.json), got {value!r}"
             )
-        out.append((fmt.strip() if fmt else None, path))
+        out.append((fmt.strip() or None, path))
     return tuple(out)
 
 
-def _read_control(path: str, sigma_px: float):
+def _read_control(path: str, sigma_px: float) -> tuple[ControlPoints, dict[str, Any]]:
     from geoblock.adjust import ControlPoints
     from geoblock.io import read_points
 
@@ -47,7 +50,7 @@ def _read_control(path: str, sigma_px: float):
     return ControlPoints.from_columns(columns, sigma_row=sigma_px, sigma_col=sigma_px), columns
 
 
-def _split_kinds(path: str, sigma_px: float):
+def _split_kinds(path: str, sigma_px: float) -> tuple[ControlPoints, ControlPoints | None]:
     from geoblock.errors import ObservationError
 
     points, columns = _read_control(path, sigma_px)
@@ -63,13 +66,14 @@ def _split_kinds(path: str, sigma_px: float):
 
 
 def _read_block_points(ground_path: str, image_path: str, image_id: str | None,
-                       sigma_px: float):
+                       sigma_px: float) -> tuple[ControlPoints, ControlPoints | None, str]:
     """GCPs and ICPs of one image from a ground CSV and an image CSV (``geoblock simulate``'s
     ``points/ground.csv`` and ``points/image.csv``, a block's point files)."""
     from geoblock.errors import ObservationError
     from geoblock.io.points import read_observations
 
     ground, images = read_observations(ground_path, image_path, sigma_px=sigma_px)
+    assert ground is not None  # a ground file was given
     present = sorted(set(images.image.tolist()))
     if not present:
         raise ObservationError(f"{image_path}: no image measurements")
@@ -94,16 +98,17 @@ def _read_block_points(ground_path: str, image_path: str, image_id: str | None,
     return gcps, (icps if len(icps.id) else None), image_id
 
 
-def _write_all(refined, targets: list[tuple[str | None, str]]) -> list[tuple[Path, str, list]]:
+def _write_all(refined: SensorModel, targets: list[tuple[str | None, str]],
+               ) -> list[tuple[Path, str, list[str]]]:
     """Write every ``(format, path)`` of ``targets``, or none of them.
 
-    Each output is first written in a staging folder beside its destination; only when every
-    writer has succeeded are the files moved into place (a missing format, an unwritable model
-    or a failing writer leaves the destinations untouched). Returns ``(path, format label,
-    warning messages)`` per target.
+    Each output is first written in a staging folder beside its destination
+    (:func:`geoblock.io.files.staged_files`); only when every writer has succeeded are the
+    files moved into place (a missing format, an unwritable model or a failing writer leaves
+    the destinations untouched). Returns ``(path, format label, warning messages)`` per target.
     """
-    from geoblock.errors import GeoblockError, GeoblockIOError, UnsupportedFormatError
-    from geoblock.io import write_model
+    from geoblock.errors import GeoblockError, UnsupportedFormatError
+    from geoblock.io import files, write_model
     from geoblock.io.models import _FORMATS_BY_SUFFIX
 
     finals = [Path(path) for _, path in targets]
@@ -119,21 +124,13 @@ def _write_all(refined, targets: list[tuple[str | None, str]]) -> list[tuple[Pat
                 f"{path!r}: cannot infer a model format from the suffix {final.suffix!r}; "
                 "use FORMAT:PATH (for example rpc-txt:scene_RPC.TXT)"
             )
-        if not final.parent.is_dir():
-            raise GeoblockIOError(
-                f"cannot write {path!r}: directory {str(final.parent)!r} does not exist"
-            )
-    staging: list[Path] = []
-    try:
-        done = []
-        for k, ((fmt, _), final) in enumerate(zip(targets, finals, strict=True)):
-            stage = Path(tempfile.mkdtemp(prefix=f".geoblock-refine-{k}-", dir=final.parent))
-            staging.append(stage)
-            staged = stage / final.name
-            if final.exists():  # writers that update a file in place (GeoTIFF tags) see it
-                shutil.copy2(final, staged)
+    done: list[tuple[Path, str, list[str]]] = []
+    with files.staged_files(finals) as staged_paths:
+        for (fmt, _), final, staged in zip(targets, finals, staged_paths, strict=True):
+            stage = staged.parent
 
-            def named(text: object, staged=staged, stage=stage, final=final) -> str:
+            def named(text: object, staged: Path = staged, stage: Path = stage,
+                      final: Path = final) -> str:
                 """A message about the staged file, naming the destination instead."""
                 return (str(text).replace(str(staged), str(final))
                         .replace(str(stage), str(final.parent)))
@@ -148,18 +145,12 @@ def _write_all(refined, targets: list[tuple[str | None, str]]) -> list[tuple[Pat
                     except Exception:  # noqa: BLE001 - an exception class with another signature
                         renamed = GeoblockError(named(exc))
                     raise renamed from exc
-            messages = [" ".join(named(w.message).split()) for w in caught]
-            done.append((final, fmt or "from suffix", messages))
-        for stage, final in zip(staging, finals, strict=True):
-            for item in sorted(stage.iterdir()):  # the file and any sidecar its writer made
-                os.replace(item, final.parent / item.name)
-        return done
-    finally:
-        for stage in staging:
-            shutil.rmtree(stage, ignore_errors=True)
+            done.append((final, fmt or "from suffix",
+                         [" ".join(named(w.message).split()) for w in caught]))
+    return done
 
 
-def _stats_table(result) -> list[str]:
+def _stats_table(result: ResectionResult) -> list[str]:
     lines = [
         "Accuracy (metres; errors = located - surveyed, along local east E and north N):",
         f"{'set':4s} {'n':>4s} {'RMSE E':>9s} {'RMSE N':>9s} {'RMSE 2D':>9s} {'mean E':>9s}"
@@ -206,8 +197,10 @@ def _stats_table(result) -> list[str]:
 @click.option("--write", "writes", metavar="FORMAT:PATH", multiple=True, callback=_write_spec,
               help="Also write the refined model in FORMAT (a plugin's writer, e.g. rpc-txt); "
               "repeatable.")
-def refine(model_path, gcps_path, icps_path, points_path, ground_path, image_path, image_id, order,
-           model_name, sigma_px, output, writes) -> None:
+def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
+           points_path: str | None, ground_path: str | None, image_path: str | None,
+           image_id: str | None, order: int, model_name: str | None, sigma_px: float,
+           output: str | None, writes: tuple[tuple[str | None, str], ...]) -> None:
     """Refine MODEL with an image-space correction fitted to ground control points.
 
     MODEL (any registered sensor model) is wrapped in a polynomial correction of its image
@@ -252,13 +245,15 @@ def refine(model_path, gcps_path, icps_path, points_path, ground_path, image_pat
                                "--ground with --image)")
 
     model = open_model_arg(model_path, model_name)
-    if block:
+    icps: ControlPoints | None
+    if ground_path is not None and image_path is not None:  # the block files (checked above)
         gcps, icps, image_id = _read_block_points(ground_path, image_path, image_id, sigma_px)
         click.echo(f"image {image_id}: {len(gcps.id)} GCPs, "
                    f"{0 if icps is None else len(icps.id)} ICPs from {image_path}")
     elif points_path is not None:
         gcps, icps = _split_kinds(points_path, sigma_px)
     else:
+        assert gcps_path is not None  # checked above
         gcps, _ = _read_control(gcps_path, sigma_px)
         icps = _read_control(icps_path, sigma_px)[0] if icps_path else None
 

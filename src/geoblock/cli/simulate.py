@@ -10,7 +10,7 @@ __all__ = ["simulate"]
 
 
 def _presets_text() -> str:
-    from geoblock.simulate.scenario import PRESETS
+    from geoblock.simulate.presets import PRESETS
 
     return "\n".join(f"  {name}: {text}" for name, text in PRESETS.items())
 
@@ -68,7 +68,8 @@ def simulate(scenario, outdir, variant, seed, no_images, force) -> None:
       geoblock simulate aguilar2007-quickbird qb --variant full --no-images
       geoblock simulate my-block.toml out --seed 7 --force
     """
-    from geoblock.simulate.scenario import load_scenario, run_scenario
+    from geoblock.simulate.scenario import load_scenario
+    from geoblock.workflows.scenario import run_scenario
 
     sc = load_scenario(scenario, variant=variant, seed=seed)
     path = check_outdir(outdir, force)

@@ -5,14 +5,15 @@ from geoblock.dem.constant import ConstantDem
 from geoblock.dem.filled import FilledDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.grid import GridDem
-from geoblock.dem.intersect import localize
+from geoblock.dem.intersect import as_dem_source, localize
 from geoblock.dem.protocol import DemSource
-from geoblock.dem.raster import BLOCK_CACHE, MosaicDem, RasterDem
+from geoblock.dem.raster import BLOCK_CACHE, ArrayDem, MosaicDem, RasterDem
 from geoblock.dem.sampling import INTERPOLATIONS
 
 __all__ = [
     "BLOCK_CACHE",
     "INTERPOLATIONS",
+    "ArrayDem",
     "ConstantDem",
     "ConstantGeoidDem",
     "DemBase",
@@ -22,6 +23,7 @@ __all__ = [
     "GridDem",
     "MosaicDem",
     "RasterDem",
+    "as_dem_source",
     "find_geoid",
     "localize",
 ]

@@ -63,8 +63,8 @@ class DemBase(abc.ABC):
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        mine = json.dumps(self.to_dict(), sort_keys=True)  # type: ignore[attr-defined]
-        theirs = json.dumps(other.to_dict(), sort_keys=True)  # type: ignore[attr-defined]
+        mine = json.dumps(self.to_dict(), sort_keys=True)
+        theirs = json.dumps(other.to_dict(), sort_keys=True)
         return mine == theirs
 
     def __hash__(self) -> int:

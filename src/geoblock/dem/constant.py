@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from geoblock.dem.base import DemBase
+from geoblock.dem.protocol import Bounds
 
 __all__ = ["ConstantDem"]
 
@@ -43,13 +44,13 @@ class ConstantDem(DemBase):
     def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
         return np.full(lon.shape, self._h)
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
         return (self._h, self._h)
 
     def to_dict(self) -> dict[str, Any]:
         return {"dem": "constant", "h": self._h}
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (ConstantDem, (self._h,))
 
     def __repr__(self) -> str:

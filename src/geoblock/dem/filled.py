@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from geoblock.dem.base import DemBase
-from geoblock.dem.protocol import DemSource
+from geoblock.dem.protocol import Bounds, DemSource
 
 __all__ = ["FilledDem"]
 
@@ -53,7 +53,7 @@ class FilledDem(DemBase):
         h = np.asarray(self._dem.height(lon, lat), dtype=np.float64)
         return np.where(np.isnan(h), self._h, h)
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
         lo, hi = self._dem.height_range(bounds)
         lo = self._h if not math.isfinite(lo) else min(lo, self._h)
         hi = self._h if not math.isfinite(hi) else max(hi, self._h)
@@ -62,7 +62,7 @@ class FilledDem(DemBase):
     def to_dict(self) -> dict[str, Any]:
         return {"dem": "filled", "fill": self._h, "source": self._dem.to_dict()}
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (FilledDem, (self._dem, self._h))
 
     def __repr__(self) -> str:

@@ -20,7 +20,6 @@ Where the grid comes from (:func:`find_geoid`), first found wins:
 from __future__ import annotations
 
 import os
-import struct
 import sys
 import threading
 from pathlib import Path
@@ -30,7 +29,9 @@ import numpy as np
 
 from geoblock._array import broadcast_float64
 from geoblock.dem.base import DemBase
+from geoblock.dem.protocol import Bounds
 from geoblock.errors import DemError
+from geoblock.io.rasters import read_gtx
 from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = ["EGM96_FILENAME", "ConstantGeoidDem", "Geoid", "find_geoid", "geoid_search_path"]
@@ -45,27 +46,16 @@ _grids_lock = threading.Lock()
 
 
 def _read_gtx(path: str) -> tuple[tuple[float, float, float, float], np.ndarray]:
-    """Header ``(lat0, lon0, dlat, dlon)`` and (rows, cols) float64 nodes (south row first)."""
+    """Header ``(lat0, lon0, dlat, dlon)`` and (rows, cols) float64 nodes (south row first),
+    read once per process (through :func:`geoblock.io.rasters.read_gtx`) and shared."""
     with _grids_lock:
         found = _grids.get(path)
         if found is not None:
             return found
-        try:
-            raw = Path(path).read_bytes()
-        except OSError as exc:
-            raise DemError(f"cannot read the geoid grid {path}: {exc.strerror or exc}") from exc
-        if len(raw) < 40:
-            raise DemError(f"geoid grid {path}: not a .gtx file (only {len(raw)} bytes)")
-        lat0, lon0, dlat, dlon, rows, cols = struct.unpack(">4d2i", raw[:40])
-        if rows < 2 or cols < 2 or dlat <= 0 or dlon <= 0 or len(raw) != 40 + 4 * rows * cols:
-            raise DemError(
-                f"geoid grid {path}: invalid .gtx header (rows={rows}, cols={cols}, "
-                f"lat_step={dlat}, lon_step={dlon}, {len(raw)} bytes)"
-            )
-        nodes = np.frombuffer(raw, dtype=">f4", offset=40).astype(np.float64).reshape(rows, cols)
+        header, nodes = read_gtx(path)
         nodes[np.abs(nodes - _GTX_NODATA) < 1e-3] = np.nan
         nodes.flags.writeable = False
-        found = _grids[path] = ((lat0, lon0, dlat, dlon), nodes)
+        found = _grids[path] = (header, nodes)
         return found
 
 
@@ -147,7 +137,7 @@ class Geoid:
         out[ok] = sub
         return out
 
-    def undulation_range(self, bounds: tuple[float, float, float, float]) -> tuple[float, float]:
+    def undulation_range(self, bounds: Bounds) -> tuple[float, float]:
         """``(min, max)`` of ``N`` over ``(west, south, east, north)`` degrees, metres.
 
         Taken over the grid nodes inside the box and one node around it (bilinear values lie
@@ -174,7 +164,7 @@ class Geoid:
     def to_dict(self) -> dict[str, Any]:
         return {"geoid": "gtx", "path": self._path}
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (Geoid, (self._path,))
 
     def __eq__(self, other: object) -> bool:
@@ -298,14 +288,14 @@ class ConstantGeoidDem(DemBase):
     def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
         return self._h + self._geoid.undulation(lon, lat)
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
         lo, hi = self._geoid.undulation_range(bounds or self.bounds)
         return (self._h + lo, self._h + hi)
 
     def to_dict(self) -> dict[str, Any]:
         return {"dem": "constant", "h": self._h, "vertical": "geoid", "geoid": self._geoid.path}
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (ConstantGeoidDem, (self._h, self._geoid))
 
     def __repr__(self) -> str:

@@ -6,6 +6,7 @@ file DEMs delegate to block by block.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -16,6 +17,7 @@ from geoblock import coords
 from geoblock._affine import apply as affine_apply
 from geoblock.dem.base import DemBase
 from geoblock.dem.sampling import INTERPOLATIONS, sample
+from geoblock.pixels import map_to_pixel, pixel_to_map
 
 __all__ = ["GridDem", "Undulation", "lonlat_to_crs"]
 
@@ -31,7 +33,7 @@ def _is_lonlat(crs: pyproj.CRS) -> bool:
     if not crs.is_geographic:
         return False
     geod = crs.geodetic_crs
-    return geod is not None and geod.ellipsoid.name == "WGS 84"
+    return geod is not None and geod.ellipsoid is not None and geod.ellipsoid.name == "WGS 84"
 
 
 def lonlat_to_crs(
@@ -45,8 +47,12 @@ def lonlat_to_crs(
     return np.asarray(x, float), np.asarray(y, float)
 
 
-def box_window(pixel_coords, shape: tuple[int, int], lonlat: bool,
-               bounds) -> tuple[int, int, int, int] | None:
+def box_window(
+    pixel_coords: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    shape: tuple[int, int],
+    lonlat: bool,
+    bounds: tuple[float, float, float, float],
+) -> tuple[int, int, int, int] | None:
     """``(r0, r1, c0, c1)`` of a grid's posts whose interpolation kernels reach into a
     lon/lat box ``(west, south, east, north)``, or None when the box misses the grid.
 
@@ -165,8 +171,7 @@ class GridDem(DemBase):
             # bring longitudes next to the grid (a grid on 0..360 or across the antimeridian)
             west = self._transform.c  # x of the grid's left edge (north-up grids)
             x = west + (np.asarray(x, float) - west) % 360.0
-        col, row = affine_apply(~self._transform, *(x, y))
-        return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
+        return map_to_pixel(self._transform, x, y)
 
     def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
         row, col = self.pixel_coords(lon, lat)
@@ -175,7 +180,9 @@ class GridDem(DemBase):
             h = h + self._geoid.undulation(lon, lat)
         return h
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(
+        self, bounds: tuple[float, float, float, float] | None = None
+    ) -> tuple[float, float]:
         """Min and max ellipsoidal height of the posts whose interpolation kernels reach into
         ``bounds`` (``(west, south, east, north)`` degrees; default all posts).
 
@@ -191,7 +198,7 @@ class GridDem(DemBase):
         h = self._heights_array[r0:r1, c0:c1]
         if self._geoid is not None:
             rr, cc = np.mgrid[r0:r1, c0:c1]
-            x, y = affine_apply(self._transform, *(cc + 0.5, rr + 0.5))
+            x, y = pixel_to_map(self._transform, rr, cc)
             if _is_lonlat(horizontal):
                 lon, lat = x, y
             else:
@@ -214,7 +221,7 @@ class GridDem(DemBase):
             out["geoid"] = getattr(self._geoid, "to_dict", lambda: repr(self._geoid))()
         return out
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (_rebuild, (self._heights_array, tuple(self._transform)[:6], self._crs.to_wkt(),
                            self._geoid, self._interpolation))
 
@@ -224,5 +231,6 @@ class GridDem(DemBase):
         return f"<GridDem {rows}x{cols} {self._crs.to_string()} heights above the {datum}>"
 
 
-def _rebuild(heights, transform, crs, geoid, interpolation) -> GridDem:
+def _rebuild(heights: np.ndarray, transform: tuple[float, ...], crs: str,
+             geoid: Undulation | None, interpolation: str) -> GridDem:
     return GridDem(heights, transform, crs, geoid=geoid, interpolation=interpolation)

@@ -39,16 +39,22 @@ Missing heights (outside the DEM, voids, model failures) are "unknown" samples; 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoblock._array import broadcast_float64, warn_status
+from geoblock.dem.base import DemBase
 from geoblock.dem.filled import FilledDem
+from geoblock.dem.protocol import Bounds, DemSource
 from geoblock.errors import GeoblockError
 from geoblock.typing import ArrayLike, GroundCoords, Status
 
-__all__ = ["METHODS", "localize"]
+if TYPE_CHECKING:
+    from geoblock.io.dem import EngineDem
+    from geoblock.models.protocol import SensorModel
+
+__all__ = ["METHODS", "as_dem_source", "localize"]
 
 METHODS = ("robust", "ray-tracing")
 
@@ -62,15 +68,21 @@ _INVALID = np.uint8(Status.INVALID_INPUT)
 # sample classes of the scan
 _POS, _NEG, _UNK, _START, _PAD = 1, -1, 0, 2, 3
 
+#: per point: lon, lat, h and the status (what the solvers return)
+_Result = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+#: per point: class, reason, a, f(a), b, f(b), lon and lat at b (what the scan returns)
+_Scan = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+              np.ndarray, np.ndarray]
+
 #: metres per degree of latitude (spherical approximation, for step sizes only)
 _M_PER_DEG = math.radians(1.0) * 6378137.0
 
 
 def localize(
-    model: Any,
+    model: SensorModel,
     row: ArrayLike,
     col: ArrayLike,
-    dem: Any,
+    dem: EngineDem,
     *,
     method: str = "robust",
     tolerance_m: float = 1e-3,
@@ -90,10 +102,12 @@ def localize(
     row, col : array_like, (*S,)
         Image coordinates, pixels (pixel-centre convention: ``(0, 0)`` is the centre of the
         first pixel); broadcast together.
-    dem : DemSource or float
+    dem : DemSource, float, or anything geoblock.open_dem opens
         Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`,
         :class:`~geoblock.dem.GridDem`, ...); a number means a
-        :class:`~geoblock.dem.ConstantDem`.
+        :class:`~geoblock.dem.ConstantDem`; a path, an open rasterio dataset or a
+        georeferenced ``xarray.DataArray`` is opened by :func:`geoblock.open_dem` with its
+        defaults (:func:`geoblock.io.dem.as_dem`).
     method : {"robust", "ray-tracing"}
         ``"robust"``: bracket the first intersection from the sensor by a scan of the line of
         sight, then refine (module docstring). ``"ray-tracing"``: the papers' fixed-point
@@ -164,10 +178,7 @@ def localize(
         raise GeoblockError(f"localize: max_iterations must be >= 1, got {max_iterations!r}")
     if fill_height is not None and not math.isfinite(float(fill_height)):
         raise GeoblockError(f"localize: fill_height must be finite, got {fill_height!r}")
-    if isinstance(dem, int | float | np.floating | np.integer):
-        from geoblock.dem.constant import ConstantDem
-
-        dem = ConstantDem(float(dem))
+    source = as_dem_source(dem)
 
     row, col = broadcast_float64(row=row, col=col)
     shape = row.shape
@@ -180,8 +191,8 @@ def localize(
     ok = np.flatnonzero(np.isfinite(r) & np.isfinite(c))
     if ok.size:
         if fill_height is not None:
-            dem = FilledDem(dem, fill_height)
-        ev = _Evaluator(model, dem)
+            source = FilledDem(source, fill_height)
+        ev = _Evaluator(model, source)
         if method == "robust":
             res = _robust(ev, r[ok], c[ok], tolerance_m, max_iterations or 60, max_levels,
                           max_evaluations)
@@ -193,25 +204,40 @@ def localize(
         lon[ok], lat[ok], h[ok], status[ok] = res
     bad = status != _OK
     lon[bad] = lat[bad] = h[bad] = np.nan
-    status = status.reshape(shape)
+    statuses = status.reshape(shape)
     if warn:
-        warn_status(status, f"localize ({method})")
-    return GroundCoords(lon.reshape(shape), lat.reshape(shape), h.reshape(shape)), status
+        warn_status(statuses, f"localize ({method})")
+    return GroundCoords(lon.reshape(shape), lat.reshape(shape), h.reshape(shape)), statuses
+
+
+def as_dem_source(dem: EngineDem) -> DemSource:
+    """``dem`` as a :class:`DemSource`: itself when it is one, else
+    :func:`geoblock.io.dem.as_dem` (a number, a path, an opened raster...).
+
+    ``geoblock.io`` sits above the DEM service (it builds its classes): imported only when a
+    DEM must be opened.
+    """
+    if isinstance(dem, DemBase):  # the common case, without the protocol's isinstance
+        return dem
+    from geoblock.io.dem import as_dem
+
+    return as_dem(dem)
 
 
 class _Evaluator:
     """``f(h) = h - dem(ray(h))`` for flat arrays of points, with the reason a sample fails."""
 
-    def __init__(self, model: Any, dem: Any) -> None:
+    def __init__(self, model: SensorModel, dem: DemSource) -> None:
         self.model = model
         self.dem = dem
         self.calls = 0
 
-    def ground(self, row, col, h):
+    def ground(self, row: np.ndarray, col: np.ndarray,
+               h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         (lon, lat, _), mstat = self.model.backproject_with_status(row, col, h)
         return lon, lat, np.asarray(mstat, np.uint8)
 
-    def __call__(self, row, col, h):
+    def __call__(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> _Result:
         """``(lon, lat, f, reason)``; ``reason`` is CONVERGED, NO_DEM or the model's status."""
         self.calls += 1
         lon, lat, mstat = self.ground(row, col, h)
@@ -221,19 +247,19 @@ class _Evaluator:
         reason = np.where(mstat != _OK, mstat, np.where(np.isfinite(f), _OK, _NO_DEM))
         return lon, lat, f, reason.astype(np.uint8)
 
-    def height_range(self, bounds) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None) -> tuple[float, float]:
         lo, hi = self.dem.height_range(bounds)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             lo, hi = self.dem.height_range()
         return float(lo), float(hi)
 
 
-def _resolution(dem: Any) -> float:
+def _resolution(dem: DemSource) -> float:
     res = float(getattr(dem, "resolution_m", 0.0) or 0.0)
     return res if math.isfinite(res) and res > 0 else 0.0
 
 
-def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float):
+def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float) -> Bounds | None:
     lon = np.concatenate([p[0] for p in lon_lat])
     lat = np.concatenate([p[1] for p in lon_lat])
     good = np.isfinite(lon) & np.isfinite(lat)
@@ -246,7 +272,7 @@ def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float):
             float(lon.max() + pad_lon), float(lat.max() + pad_lat))
 
 
-def _scan_range(ev: _Evaluator, row, col) -> tuple[float, float] | None:
+def _scan_range(ev: _Evaluator, row: np.ndarray, col: np.ndarray) -> tuple[float, float] | None:
     """``(bottom, top)`` heights that contain the terrain under all the rays, or None."""
     pad = 2.0 * _resolution(ev.dem) + 1.0
     lo, hi = (float(v) for v in ev.model.height_range)
@@ -266,7 +292,8 @@ def _scan_range(ev: _Evaluator, row, col) -> tuple[float, float] | None:
     return result
 
 
-def _robust(ev: _Evaluator, row, col, tol, max_iter, max_levels, max_evaluations):
+def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_iter: int,
+            max_levels: int, max_evaluations: int) -> _Result:
     n = row.size
     lon = np.full(n, np.nan)
     lat = np.full(n, np.nan)
@@ -317,7 +344,8 @@ def _robust(ev: _Evaluator, row, col, tol, max_iter, max_levels, max_evaluations
     return lon, lat, h, status
 
 
-def _scan(ev, row, col, top, bottom, step, nlev, max_evaluations):
+def _scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, top: np.ndarray,
+          bottom: np.ndarray, step: np.ndarray, nlev: np.ndarray, max_evaluations: int) -> _Scan:
     """Scan each ray from ``top`` down to ``bottom`` by ``step``; return per point:
 
     ``cls``: ``_NEG`` bracketed (between ``a`` above, ``f(a) = fa > 0``, and ``b`` below,
@@ -392,7 +420,9 @@ def _scan(ev, row, col, top, bottom, step, nlev, max_evaluations):
     return cls_out, reason_out, a, fa, b, fb, b_lon, b_lat
 
 
-def _illinois(ev, row, col, a, fa, b, fb, b_lon, b_lat, along, tol, max_iter):
+def _illinois(ev: _Evaluator, row: np.ndarray, col: np.ndarray, a: np.ndarray, fa: np.ndarray,
+              b: np.ndarray, fb: np.ndarray, b_lon: np.ndarray, b_lat: np.ndarray,
+              along: np.ndarray, tol: float, max_iter: int) -> _Result:
     """Refine brackets ``a > b`` (``f(a) > 0 >= f(b)``) to the root of ``f``."""
     n = row.size
     lon = b_lon.copy()
@@ -443,7 +473,8 @@ def _illinois(ev, row, col, a, fa, b, fb, b_lon, b_lat, along, tol, max_iter):
     return lon, lat, h, status
 
 
-def _ray_tracing(ev: _Evaluator, row, col, tol, max_iter, h_start):
+def _ray_tracing(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_iter: int,
+                 h_start: np.ndarray | None) -> _Result:
     """Chen & Lee / Teo et al.: ``Z -> (lon, lat) = backproject(Z) -> Z' = dem(lon, lat)``."""
     n = row.size
     lon = np.full(n, np.nan)

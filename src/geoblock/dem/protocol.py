@@ -9,7 +9,10 @@ from numpy.typing import NDArray
 
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["DemSource"]
+__all__ = ["Bounds", "DemSource"]
+
+Bounds = tuple[float, float, float, float]
+"""``(west, south, east, north)``, degrees (WGS84)."""
 
 
 @runtime_checkable

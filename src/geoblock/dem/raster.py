@@ -33,11 +33,13 @@ Nodata
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 import threading
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,15 +51,17 @@ from affine import Affine
 from geoblock import coords
 from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
-from geoblock._rasterio import cached_dataset as _dataset
-from geoblock._rasterio import open_quietly
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
-from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s, sample
+from geoblock.dem.protocol import Bounds
+from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s
 from geoblock.errors import DemCoverageError, DemError
+from geoblock.io.rasters import open_quietly, read_window
+from geoblock.pixels import PIXEL_CENTRE, pixel_to_map
 
-__all__ = ["BLOCK_CACHE", "VERTICALS", "BlockCache", "MosaicDem", "RasterDem", "file_vertical"]
+__all__ = ["BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "MosaicDem", "RasterDem",
+           "file_vertical"]
 
 VERTICALS = ("ellipsoid", "geoid")
 """Accepted values of ``vertical=`` (besides ``None``: from the file)."""
@@ -215,6 +219,30 @@ class RasterDem(DemBase):
 
         self._path = str(path) if str(path).startswith(("/vsi", "http")) else str(
             Path(path).expanduser().resolve())
+        self._set_options(vertical, nodata, interpolation, strict, band, fill_distance)
+        try:
+            ds = open_quietly(self._path)  # no georeferencing is refused below
+            with ds:
+                if not 1 <= self._band <= ds.count:
+                    raise DemError(f"DEM {self._path}: band {band} does not exist "
+                                   f"({ds.count} bands)")
+                if ds.crs is None:
+                    raise DemError(f"DEM {self._path} has no CRS (georeferencing); geoblock "
+                                   "needs one to place its heights")
+                k = self._band - 1
+                self._set_raster(
+                    driver=ds.driver, shape=(int(ds.height), int(ds.width)),
+                    transform=Affine(*tuple(ds.transform)[:6]), crs=_to_pyproj(ds.crs),
+                    file_nodata=ds.nodatavals[k], dtype=np.dtype(ds.dtypes[k]),
+                    scale=ds.scales[k], offset=ds.offsets[k], tags=ds.tags(self._band))
+        except RasterioIOError as exc:
+            raise DemError(f"cannot open DEM {self._path}: {exc}") from exc
+        self._finish(vertical, geoid, (self._path,))
+
+    # ------------------------------------------------------------------ set-up steps
+    def _set_options(self, vertical: str | None, nodata: str | float, interpolation: str,
+                     strict: bool, band: int, fill_distance: int) -> None:
+        """Check and keep the options (``self._path`` names the DEM in the messages)."""
         if interpolation not in INTERPOLATIONS:
             raise DemError(f"DEM {self._path}: interpolation must be one of {INTERPOLATIONS}, "
                            f"got {interpolation!r}")
@@ -235,31 +263,27 @@ class RasterDem(DemBase):
         self._strict = bool(strict)
         self._band = int(band)
         self._fill_distance = int(fill_distance)
-        try:
-            ds = open_quietly(self._path)  # no georeferencing is refused below
-            with ds:
-                if not 1 <= self._band <= ds.count:
-                    raise DemError(f"DEM {self._path}: band {band} does not exist "
-                                   f"({ds.count} bands)")
-                if ds.crs is None:
-                    raise DemError(f"DEM {self._path} has no CRS (georeferencing); geoblock "
-                                   "needs one to place its heights")
-                self._driver = ds.driver
-                self._shape = (int(ds.height), int(ds.width))
-                self._transform = Affine(*tuple(ds.transform)[:6])
-                self._crs = _to_pyproj(ds.crs)
-                file_nodata = ds.nodatavals[self._band - 1]
-                self._file_nodata = None if file_nodata is None else float(file_nodata)
-                self._dtype = np.dtype(ds.dtypes[self._band - 1])
-                self._scale = float(ds.scales[self._band - 1] or 1.0)
-                self._offset = float(ds.offsets[self._band - 1] or 0.0)
-                tags = ds.tags(self._band)
-        except RasterioIOError as exc:
-            raise DemError(f"cannot open DEM {self._path}: {exc}") from exc
-        if self._transform.is_degenerate:
-            raise DemError(f"DEM {self._path}: degenerate geotransform {tuple(self._transform)}")
+
+    def _set_raster(self, *, driver: str, shape: tuple[int, int], transform: Affine,
+                    crs: pyproj.CRS, file_nodata: float | None, dtype: np.dtype,
+                    scale: float | None, offset: float | None, tags: Mapping[str, str]) -> None:
+        """Keep what the raster states about itself (as rasterio reports it for the band)."""
+        self._driver = str(driver)
+        self._shape = shape
+        self._transform = transform
+        self._crs = crs
+        self._file_nodata = None if file_nodata is None else float(file_nodata)
+        self._dtype = np.dtype(dtype)
+        self._scale = float(scale or 1.0)
+        self._offset = float(offset or 0.0)
         self._tag_stats = (tags.get("STATISTICS_MINIMUM"), tags.get("STATISTICS_MAXIMUM"))
 
+    def _finish(self, vertical: str | None, geoid: Geoid | str | os.PathLike[str] | None,
+                identity: tuple[Any, ...]) -> None:
+        """The vertical datum, the geoid, the block layout and the cache key (``identity``:
+        what identifies the pixels, e.g. the path)."""
+        if self._transform.is_degenerate:
+            raise DemError(f"DEM {self._path}: degenerate geotransform {tuple(self._transform)}")
         stated, how = file_vertical(self._crs, self._driver)
         if vertical is None:
             if stated is None:
@@ -289,8 +313,8 @@ class RasterDem(DemBase):
         rows, cols = self._shape
         self._block = max(rows, cols) if max(rows, cols) <= _WHOLE else _BLOCK
         self._nbc = -(-cols // self._block)
-        self._store_dtype = np.float64 if self._dtype == np.float64 else np.float32
-        self._cache_key = (self._path, self._band, str(self._nodata_policy), self._fill_distance)
+        self._store_dtype = np.dtype(np.float64 if self._dtype == np.float64 else np.float32)
+        self._cache_key = (*identity, self._band, str(self._nodata_policy), self._fill_distance)
         self._inverse = np.array(tuple(~self._transform)[:6], dtype=np.float64)
 
     # ------------------------------------------------------------------ properties
@@ -384,11 +408,14 @@ class RasterDem(DemBase):
         return size
 
     # ------------------------------------------------------------------ reading
-    def _read(self, ds: Any, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
-        """Rows ``r0:r1``, cols ``c0:c1`` (inside the raster) as floats, NaN for nodata."""
-        from rasterio.windows import Window
+    def _read_raw(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """Rows ``r0:r1``, cols ``c0:c1`` of the band as stored (through the per-thread handle
+        cache of :mod:`geoblock.io.rasters`: one open per file and thread)."""
+        return read_window(self._path, (r0, r1, c0, c1), band=self._band, what="the DEM ")
 
-        raw = ds.read(self._band, window=Window(c0, r0, c1 - c0, r1 - r0))
+    def _read(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """Rows ``r0:r1``, cols ``c0:c1`` (inside the raster) as floats, NaN for nodata."""
+        raw = self._read_raw(r0, r1, c0, c1)
         out = raw.astype(self._store_dtype)
         bad = ~np.isfinite(out)
         if self._file_nodata is not None and np.isfinite(self._file_nodata):
@@ -404,7 +431,7 @@ class RasterDem(DemBase):
         margin = h + (self._fill_distance if self._nodata_policy == "fill" else 0)
         r0, r1 = max(br * b - margin, 0), min((br + 1) * b + margin, rows)
         c0, c1 = max(bc * b - margin, 0), min((bc + 1) * b + margin, cols)
-        data = self._read(_dataset(self._path), r0, r1, c0, c1)
+        data = self._read(r0, r1, c0, c1)
         if self._nodata_policy == "fill":
             data = self._fill(data)
         elif not isinstance(self._nodata_policy, str):
@@ -453,7 +480,7 @@ class RasterDem(DemBase):
 
         Compiled (GIL released): pixel coordinates, coverage and block of every point in one
         pass, then each block's points sampled in place (bit-identical to
-        :meth:`_sample_reference`)."""
+        :func:`geoblock.dem._reference.sample_reference`)."""
         rows, cols = self._shape
         b = self._block
         nearest = self._interpolation == "nearest"
@@ -489,11 +516,11 @@ class RasterDem(DemBase):
                 _nb_sample_index(block, row, col, order[s0:e0], float(kr * b - _HALO),
                                  float(kc * b - _HALO), n, out)
         outside = (keys < 0).reshape(shape)
-        out = out.reshape(shape)
+        heights = out.reshape(shape)
         if self._geoid is not None and not outside.all():
             inside = ~outside
-            out[inside] = out[inside] + self._geoid.undulation(lon[inside], lat[inside])
-        return out, outside
+            heights[inside] = heights[inside] + self._geoid.undulation(lon[inside], lat[inside])
+        return heights, outside
 
     def _sample_window(
         self, lon: np.ndarray, lat: np.ndarray, n: int
@@ -556,68 +583,19 @@ class RasterDem(DemBase):
         outside = np.empty(x.size, dtype=np.bool_)
         _nb_sample_window(x, y, self._inverse, bool(self._lonlat), west, rows, cols, n, window,
                           float(off_r), float(off_c), out, outside)
-        out = out.reshape(shape)
-        outside = outside.reshape(shape)
-        if self._geoid is not None and not outside.all():
-            if outside.any():
-                inside = ~outside
-                out[inside] = out[inside] + self._geoid.undulation(lon[inside], lat[inside])
+        heights = out.reshape(shape)
+        missed = outside.reshape(shape)
+        if self._geoid is not None and not missed.all():
+            if missed.any():
+                inside = ~missed
+                heights[inside] = heights[inside] + self._geoid.undulation(lon[inside],
+                                                                           lat[inside])
             else:
-                out += self._geoid.undulation(lon, lat)
-        return out, outside
+                heights += self._geoid.undulation(lon, lat)
+        return heights, missed
 
     def _get_block(self, kr: int, kc: int) -> np.ndarray:
         return BLOCK_CACHE.get((*self._cache_key, kr, kc), lambda: self._load_block(kr, kc))
-
-    def _pixel_coords_reference(
-        self, lon: np.ndarray, lat: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The numpy reference of :meth:`pixel_coords` (the tests hold the compiled path to it)."""
-        x, y = lonlat_to_crs(self._crs, np.asarray(lon, float), np.asarray(lat, float))
-        if self._lonlat:
-            west = self._transform.c
-            x = west + (np.asarray(x, float) - west) % 360.0
-        col, row = affine_apply(~self._transform, *(x, y))
-        return np.asarray(row, float) - 0.5, np.asarray(col, float) - 0.5
-
-    def _sample_reference(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The numpy reference of :meth:`_sample` (per-block groups sampled by
-        :func:`~geoblock.dem.sampling.sample`); the tests hold the compiled path to it."""
-        rows, cols = self._shape
-        row, col = self._pixel_coords_reference(lon, lat)
-        with np.errstate(invalid="ignore"):
-            inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
-        out = np.full(lon.shape, np.nan)
-        if not inside.any():
-            return out, ~inside
-        idx = np.flatnonzero(inside)
-        r = np.clip(row[idx], 0.0, rows - 1.0)
-        c = np.clip(col[idx], 0.0, cols - 1.0)
-        b = self._block
-        if self._interpolation == "nearest":
-            br, bc = np.floor(r + 0.5) // b, np.floor(c + 0.5) // b
-        else:
-            br = np.minimum(np.floor(r), rows - 1) // b
-            bc = np.minimum(np.floor(c), cols - 1) // b
-        keys = (br * self._nbc + bc).astype(np.int64)
-        values = np.empty(idx.size)
-        if keys.size and keys.min() == keys.max():
-            groups = [(int(keys[0]), slice(None))]
-        else:
-            order = np.argsort(keys, kind="stable")
-            uniq, starts = np.unique(keys[order], return_index=True)
-            ends = np.append(starts[1:], order.size)
-            groups = [(int(k), order[s:e]) for k, s, e in zip(uniq, starts, ends, strict=True)]
-        for key, sel in groups:
-            kr, kc = divmod(key, self._nbc)
-            block = BLOCK_CACHE.get((*self._cache_key, kr, kc),
-                                    lambda kr=kr, kc=kc: self._load_block(kr, kc))
-            values[sel] = sample(block, r[sel] - (kr * b - _HALO), c[sel] - (kc * b - _HALO),
-                                 self._interpolation)
-        if self._geoid is not None:
-            values = values + self._geoid.undulation(lon[idx], lat[idx])
-        out[idx] = values
-        return out, ~inside
 
     def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
         h, outside = self._sample(lon, lat)
@@ -655,9 +633,8 @@ class RasterDem(DemBase):
         nodata policy."""
         lo, hi, nbad, n = np.inf, -np.inf, 0, 0
         step = max(1, _STRIP_PIXELS // max(c1 - c0, 1))
-        ds = _dataset(self._path)  # kept open per thread: one lattice block = one call
         for s in range(r0, r1, step):
-            data = self._read(ds, s, min(s + step, r1), c0, c1)
+            data = self._read(s, min(s + step, r1), c0, c1)
             good = np.isfinite(data)
             n += data.size
             nbad += int(data.size - good.sum())
@@ -685,7 +662,7 @@ class RasterDem(DemBase):
                 "max": hi if np.isfinite(hi) else float("nan"),
                 "nodata_count": nbad, "pixel_count": n, "nodata_share": nbad / n if n else 0.0}
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
         """``(min, max)`` ellipsoidal height of the posts over ``(west, south, east, north)``
         degrees (default the whole raster), metres; NaN when there is none.
 
@@ -702,7 +679,8 @@ class RasterDem(DemBase):
             if window is None:
                 return (float("nan"), float("nan"))
             lo, hi, _, _ = self._scan(*window)
-            box = tuple(float(v) for v in bounds)
+            west, south, east, north = (float(v) for v in bounds)
+            box = (west, south, east, north)
         if not (np.isfinite(lo) and np.isfinite(hi)):
             return (float("nan"), float("nan"))
         if self._geoid is not None:
@@ -710,7 +688,7 @@ class RasterDem(DemBase):
             lo, hi = lo + n_lo, hi + n_hi
         return (float(lo), float(hi))
 
-    def _window(self, bounds) -> tuple[int, int, int, int] | None:
+    def _window(self, bounds: Bounds) -> tuple[int, int, int, int] | None:
         """``(r0, r1, c0, c1)`` of the pixels whose kernels reach into a lon/lat box."""
         return box_window(self.pixel_coords, self._shape, self._lonlat, bounds)
 
@@ -736,13 +714,195 @@ class RasterDem(DemBase):
         opts = {k: v for k, v in data.items() if k not in ("dem", "path")}
         return cls(data["path"], **opts)
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         return (RasterDem.from_dict, (self.to_dict(),))
 
     def __repr__(self) -> str:
         rows, cols = self._shape
         return (f"<RasterDem {self._path} {rows}x{cols} {self._crs.name!r} heights above the "
                 f"{self._vertical}, {self._interpolation}>")
+
+
+# ---------------------------------------------------------------------------- ArrayDem
+class ArrayDem(RasterDem):
+    """A height grid in memory, sampled exactly as :class:`RasterDem` samples a file.
+
+    The same blocks, kernels, edge extension, nodata policies and vertical datum rules as a
+    ``RasterDem`` of a file holding the same pixels, so the heights are identical to that
+    file's. Users normally call ``geoblock.open_dem(array, transform=..., crs=...)``, or
+    ``open_dem`` with an ``xarray.DataArray`` or an in-memory rasterio dataset.
+
+    Parameters
+    ----------
+    heights : array_like, (R, C) or (1, R, C)
+        The posts as stored, any real numeric dtype (kept as a read-only view, not copied).
+    transform : affine.Affine or sequence of 6
+        GDAL geotransform of the array (pixel corners), rasterio order.
+    crs : pyproj.CRS, rasterio CRS, str or int
+        CRS of the grid; a compound CRS may state the vertical datum (as a file's does).
+    nodata_value : float, optional
+        The value marking posts without a height (NaN always does).
+    scale, offset : float
+        Heights are ``stored * scale + offset`` (a file's band scale and offset).
+    driver : str
+        The GDAL driver the pixels come from (``"SRTMHGT"`` states EGM96 heights); default
+        ``"MEM"``.
+    name : str, optional
+        What to call the DEM in messages.
+    vertical, geoid, nodata, interpolation, strict, fill_distance
+        As :class:`RasterDem`.
+
+    Raises
+    ------
+    DemError
+        Not a 2-D numeric array, no or degenerate geotransform, no or unreadable CRS, an
+        invalid option, or a vertical datum stated neither by the CRS nor by ``vertical=``.
+    """
+
+    def __init__(
+        self,
+        heights: Any,
+        transform: Affine | Sequence[float],
+        crs: Any,
+        *,
+        nodata_value: float | None = None,
+        scale: float = 1.0,
+        offset: float = 0.0,
+        driver: str = "MEM",
+        name: str | None = None,
+        vertical: str | None = None,
+        geoid: Geoid | str | os.PathLike[str] | None = None,
+        nodata: str | float = "nan",
+        interpolation: str = "bilinear",
+        strict: bool = False,
+        fill_distance: int = 100,
+    ) -> None:
+        arr = np.asarray(heights)
+        if arr.ndim == 3 and arr.shape[0] == 1:
+            arr = arr[0]
+        if arr.ndim != 2 or min(arr.shape) < 1 or arr.dtype.kind not in "iuf":
+            raise DemError(f"{name or 'in-memory DEM'}: heights must be a non-empty 2-D array "
+                           f"of numbers, got shape {np.shape(heights)} and dtype {arr.dtype}")
+        view = arr.view()
+        view.flags.writeable = False
+        self._array = view
+        rows, cols = arr.shape
+        self._path = name or f"<in-memory {rows} x {cols} DEM>"
+        self._set_options(vertical, nodata, interpolation, strict, 1, fill_distance)
+        if transform is None:
+            raise DemError(f"DEM {self._path}: a geotransform is needed (transform=)")
+        t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
+        self._set_raster(driver=driver, shape=(rows, cols), transform=t,
+                         crs=_crs_of(crs, self._path), file_nodata=nodata_value,
+                         dtype=arr.dtype, scale=scale, offset=offset, tags={})
+        self._digest = _digest(arr)
+        self._finish(vertical, geoid, ("array", self._digest, tuple(t)[:6],
+                                       self._file_nodata, self._scale, self._offset))
+
+    @property
+    def path(self) -> str:
+        """The DEM's name (an in-memory DEM has no file)."""
+        return self._path
+
+    @property
+    def array(self) -> np.ndarray:
+        """(R, C) the posts as given (read-only)."""
+        return self._array
+
+    def _read_raw(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        return self._array[r0:r1, c0:c1]
+
+    def _state(self) -> dict[str, Any]:
+        """Everything but the posts (JSON-safe)."""
+        return {
+            "dem": "array",
+            "name": self._path,
+            "transform": [float(v) for v in tuple(self._transform)[:6]],
+            "crs": self._crs.to_wkt(),
+            "nodata_value": self._file_nodata,
+            "scale": self._scale,
+            "offset": self._offset,
+            "driver": self._driver,
+            "vertical": self._vertical,
+            "geoid": None if self._geoid is None else self._geoid.path,
+            "nodata": self._nodata_policy,
+            "interpolation": self._interpolation,
+            "strict": self._strict,
+            "fill_distance": self._fill_distance,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe, with the posts (``heights``, rows of numbers, None for NaN, and their
+        ``dtype``): large; pickling and dask tokens do not go through it."""
+        out = self._state()
+        out["dtype"] = self._array.dtype.str
+        out["heights"] = [[None if v != v else v for v in row] for row in self._array.tolist()]
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ArrayDem:
+        """The DEM of :meth:`to_dict`."""
+        heights = np.array([[np.nan if v is None else v for v in row] for row in data["heights"]],
+                           dtype=np.dtype(data.get("dtype", "<f8")))
+        opts = {k: v for k, v in data.items()
+                if k not in ("dem", "heights", "dtype", "transform", "crs")}
+        return cls(heights, data["transform"], data["crs"], **opts)
+
+    def _identity(self) -> str:
+        return json.dumps({**self._state(), "digest": self._digest}, sort_keys=True)
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return self._identity() == other._identity()
+
+    def __hash__(self) -> int:
+        return hash(self._identity())
+
+    def __dask_tokenize__(self) -> tuple[str, str]:
+        return (type(self).__name__, self._identity())
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        state = self._state()
+        return (_rebuild_array_dem, (self._array, state))
+
+    def __repr__(self) -> str:
+        rows, cols = self._shape
+        return (f"<ArrayDem {self._path} {rows}x{cols} {self._crs.name!r} heights above the "
+                f"{self._vertical}, {self._interpolation}>")
+
+
+def _rebuild_array_dem(heights: np.ndarray, state: dict[str, Any]) -> ArrayDem:
+    opts = {k: v for k, v in state.items() if k not in ("dem", "transform", "crs")}
+    return ArrayDem(heights, state["transform"], state["crs"], **opts)
+
+
+def _digest(array: np.ndarray) -> str:
+    """A hash of an array's values, dtype and shape (the block cache's key for its pixels)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{array.dtype.str}{array.shape}".encode())
+    h.update(np.ascontiguousarray(array).data)
+    return h.hexdigest()
+
+
+def _crs_of(crs: Any, name: str) -> pyproj.CRS:
+    """A pyproj CRS of ``crs`` (pyproj, rasterio, WKT, EPSG code...); DemError if none."""
+    if crs is None:
+        raise DemError(f"DEM {name} has no CRS (georeferencing); geoblock needs one to place "
+                       "its heights (crs=)")
+    try:
+        if not isinstance(crs, pyproj.CRS) and hasattr(crs, "to_wkt"):
+            return _to_pyproj(crs)
+        return pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError as exc:
+        raise DemError(f"DEM {name}: {crs!r} is not a CRS pyproj knows: {exc}") from None
+
+
+def tile_from_dict(data: Mapping[str, Any]) -> RasterDem:
+    """A :class:`RasterDem` or :class:`ArrayDem` from its ``to_dict()``."""
+    if data.get("dem") == "array":
+        return ArrayDem.from_dict(data)
+    return RasterDem.from_dict(dict(data))
 
 
 # ---------------------------------------------------------------------------- MosaicDem
@@ -796,7 +956,7 @@ class MosaicDem(DemBase):
             )
         return out
 
-    def height_range(self, bounds=None) -> tuple[float, float]:
+    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
         """``(min, max)`` ellipsoidal height over the tiles meeting ``bounds``, metres."""
         ranges = []
         for t in self._tiles:
@@ -809,7 +969,8 @@ class MosaicDem(DemBase):
             return (float("nan"), float("nan"))
         return (min(r[0] for r in ranges), max(r[1] for r in ranges))
 
-    def heights_on_grid(self, crs, transform, shape) -> np.ndarray:
+    def heights_on_grid(self, crs: Any, transform: Affine | Sequence[float],
+                        shape: tuple[int, int]) -> np.ndarray:
         """As :meth:`RasterDem.heights_on_grid`."""
         return _heights_on_grid(self, crs, transform, shape)
 
@@ -819,30 +980,35 @@ class MosaicDem(DemBase):
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> MosaicDem:
-        return cls([RasterDem.from_dict(t) for t in data["tiles"]],
+        return cls([tile_from_dict(t) for t in data["tiles"]],
                    strict=data.get("strict", False))
 
-    def __reduce__(self):
-        return (MosaicDem.from_dict, (self.to_dict(),))
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild_mosaic, (self._tiles, self._strict))  # each tile pickles itself
 
     def __repr__(self) -> str:
         return f"<MosaicDem of {len(self._tiles)} tiles>"
 
 
+def _rebuild_mosaic(tiles: Sequence[RasterDem], strict: bool) -> MosaicDem:
+    return MosaicDem(tiles, strict=strict)
+
+
 # ---------------------------------------------------------------------------- helpers
-def _overlap(a, b) -> bool:
+def _overlap(a: Bounds, b: Bounds) -> bool:
     return not (a[2] < b[0] or b[2] < a[0] or a[3] < b[1] or b[3] < a[1])
 
 
-def _fmt_bounds(b) -> str:
+def _fmt_bounds(b: Bounds) -> str:
     return "(" + ", ".join(f"{v:.6f}" for v in b) + ")"
 
 
-def _heights_on_grid(dem: DemBase, crs, transform, shape) -> np.ndarray:
+def _heights_on_grid(dem: DemBase, crs: Any, transform: Affine | Sequence[float],
+                     shape: tuple[int, int]) -> np.ndarray:
     rows, cols = (int(v) for v in shape)
     t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
     rr, cc = np.mgrid[0:rows, 0:cols]
-    x, y = affine_apply(t, *(cc + 0.5, rr + 0.5))
+    x, y = pixel_to_map(t, rr, cc)
     dst = pyproj.CRS.from_user_input(crs)
     horizontal = dst.sub_crs_list[0] if dst.is_compound else dst
     if _is_lonlat(horizontal):
@@ -854,7 +1020,8 @@ def _heights_on_grid(dem: DemBase, crs, transform, shape) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- compiled paths
 @numba.njit(nogil=True, cache=True)
-def _nb_pixel_coords(x, y, inv, lonlat, west, row, col):  # pragma: no cover - compiled
+def _nb_pixel_coords(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
+                     row: np.ndarray, col: np.ndarray) -> None:  # pragma: no cover - compiled
     """Pixel-centre row/col of CRS points ``x, y`` (longitudes wrapped from ``west`` when
     ``lonlat``), with the inverse geotransform ``inv`` (a, b, c, d, e, f)."""
     a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
@@ -866,12 +1033,13 @@ def _nb_pixel_coords(x, y, inv, lonlat, west, row, col):  # pragma: no cover - c
             if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
                 dx = dx % 360.0
             xx = west + dx
-        col[k] = (a * xx + b * yy + c) - 0.5
-        row[k] = (d * xx + e * yy + f) - 0.5
+        col[k] = (a * xx + b * yy + c) - PIXEL_CENTRE
+        row[k] = (d * xx + e * yy + f) - PIXEL_CENTRE
 
 
 @numba.njit(nogil=True, cache=True)
-def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover - compiled
+def _nb_locate(row: np.ndarray, col: np.ndarray, rows: int, cols: int, b: int, nbc: int,
+               nearest: bool, keys: np.ndarray) -> tuple[int, int]:  # pragma: no cover
     """Coverage and block of every point: ``keys`` = block index (``-1`` outside); row/col
     clipped in place to the outermost centres. Returns (min, max) key of the inside points
     (``(-1, -1)`` when none)."""
@@ -882,7 +1050,8 @@ def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover
     for k in range(row.size):
         r = row[k]
         c = col[k]
-        if not (r >= -0.5 and r <= rows - 0.5 and c >= -0.5 and c <= cols - 0.5):
+        if not (r >= -PIXEL_CENTRE and r <= rows - PIXEL_CENTRE
+                and c >= -PIXEL_CENTRE and c <= cols - PIXEL_CENTRE):
             keys[k] = -1
             continue
         r = min(max(r, 0.0), hi_r)
@@ -890,8 +1059,8 @@ def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover
         row[k] = r
         col[k] = c
         if nearest:
-            br = int(math.floor(r + 0.5)) // b
-            bc = int(math.floor(c + 0.5)) // b
+            br = int(math.floor(r + PIXEL_CENTRE)) // b  # the pixel holding the point
+            bc = int(math.floor(c + PIXEL_CENTRE)) // b
         else:
             br = min(int(math.floor(r)), rows - 1) // b
             bc = min(int(math.floor(c)), cols - 1) // b
@@ -905,7 +1074,9 @@ def _nb_locate(row, col, rows, cols, b, nbc, nearest, keys):  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True)
-def _nb_sample_keyed(block, row, col, keys, key, off_r, off_c, n, out):  # pragma: no cover
+def _nb_sample_keyed(block: np.ndarray, row: np.ndarray, col: np.ndarray, keys: np.ndarray,
+                     key: int, off_r: float, off_c: float, n: int,
+                     out: np.ndarray) -> None:  # pragma: no cover - compiled
     """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at the points of ``key``."""
     wr = np.empty(4)
     wc = np.empty(4)
@@ -915,7 +1086,9 @@ def _nb_sample_keyed(block, row, col, keys, key, off_r, off_c, n, out):  # pragm
 
 
 @numba.njit(nogil=True, cache=True)
-def _nb_sample_index(block, row, col, idx, off_r, off_c, n, out):  # pragma: no cover
+def _nb_sample_index(block: np.ndarray, row: np.ndarray, col: np.ndarray, idx: np.ndarray,
+                     off_r: float, off_c: float, n: int,
+                     out: np.ndarray) -> None:  # pragma: no cover - compiled
     """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at points ``idx``."""
     wr = np.empty(4)
     wc = np.empty(4)
@@ -926,8 +1099,10 @@ def _nb_sample_index(block, row, col, idx, off_r, off_c, n, out):  # pragma: no 
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _nb_sample_window(x, y, inv, lonlat, west, rows, cols, n, window, off_r, off_c, out,
-                      outside):  # pragma: no cover - compiled
+def _nb_sample_window(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
+                      rows: int, cols: int, n: int, window: np.ndarray, off_r: float,
+                      off_c: float, out: np.ndarray,
+                      outside: np.ndarray) -> None:  # pragma: no cover - compiled
     """:func:`_nb_pixel_coords`, :func:`_nb_locate` and the sampling of ``window`` (origin at
     raster pixel ``off_r, off_c``) in one pass: heights into ``out`` (NaN outside), the
     coverage into ``outside``."""
@@ -942,9 +1117,10 @@ def _nb_sample_window(x, y, inv, lonlat, west, rows, cols, n, window, off_r, off
             if not (dx >= 0.0 and dx < 360.0):
                 dx = dx % 360.0
             xx = west + dx
-        cc = (a * xx + b * yy + c) - 0.5
-        rr = (d * xx + e * yy + f) - 0.5
-        if not (rr >= -0.5 and rr <= rows - 0.5 and cc >= -0.5 and cc <= cols - 0.5):
+        cc = (a * xx + b * yy + c) - PIXEL_CENTRE
+        rr = (d * xx + e * yy + f) - PIXEL_CENTRE
+        if not (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
+                and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
             out[k] = np.nan
             outside[k] = True
             continue

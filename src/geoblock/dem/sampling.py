@@ -3,13 +3,14 @@
 ``(row, col)`` are pixel coordinates with integers at pixel centres, as everywhere in
 geoblock: GDAL's pixel/line minus 0.5. The kernels reproduce GDAL's:
 
-* ``nearest``: the pixel containing the point (``floor(col + 0.5)``);
+* ``nearest``: the pixel containing the point (``floor(col + PIXEL_CENTRE)``);
 * ``bilinear``: the four surrounding centres; any nodata (NaN) tap gives NaN, as GDAL's RPC
   DEM sampling does per point;
 * ``bicubic``: Keys' cubic convolution (a = -0.5, GDAL's warp ``cubic``) on the 4 x 4
   surrounding centres; any NaN tap gives NaN.
 
-Points whose taps leave the array are NaN (outside coverage).
+Points whose taps leave the array are NaN (outside coverage). The numpy reference of the
+compiled path is :func:`geoblock.dem._reference.sample_array_reference` (tests only).
 """
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["INTERPOLATIONS", "halo", "sample", "sample_reference"]
+from geoblock.pixels import PIXEL_CENTRE
+
+__all__ = ["INTERPOLATIONS", "halo", "sample"]
 
 INTERPOLATIONS = ("nearest", "bilinear", "bicubic")
 
@@ -65,8 +68,8 @@ def sample(array: np.ndarray, row: np.ndarray, col: np.ndarray, interpolation: s
     finite = np.isfinite(row) & np.isfinite(col)
     if interpolation == "nearest":
         with np.errstate(invalid="ignore"):
-            r = np.floor(row + 0.5)
-            c = np.floor(col + 0.5)
+            r = np.floor(row + PIXEL_CENTRE)  # the pixel holding the point
+            c = np.floor(col + PIXEL_CENTRE)
         ok = finite & (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
         out[ok] = array[r[ok].astype(np.intp), c[ok].astype(np.intp)]
         return out
@@ -79,38 +82,8 @@ def sample(array: np.ndarray, row: np.ndarray, col: np.ndarray, interpolation: s
     return flat.reshape(out.shape)
 
 
-def sample_reference(array: np.ndarray, row: np.ndarray, col: np.ndarray, n: int) -> np.ndarray:
-    """The vectorised numpy reference of the bilinear (n = 2) / bicubic (n = 4) path of
-    :func:`sample` (slower, (M, n, n) gathers); the tests hold the compiled path to it."""
-    rows, cols = array.shape
-    out = np.full(row.shape, np.nan)
-    finite = np.isfinite(row) & np.isfinite(col)
-    with np.errstate(invalid="ignore"):
-        r0 = np.floor(row)
-        c0 = np.floor(col)
-    first = 0 if n == 2 else -1
-    ok = finite & (r0 + first >= 0) & (r0 + first + n - 1 < rows)
-    ok &= (c0 + first >= 0) & (c0 + first + n - 1 < cols)
-    if not ok.any():
-        return out
-    ri = r0[ok].astype(np.intp) + first
-    ci = c0[ok].astype(np.intp) + first
-    tr = row[ok] - r0[ok]
-    tc = col[ok] - c0[ok]
-    if n == 2:
-        wr = np.stack([1.0 - tr, tr], axis=-1)
-        wc = np.stack([1.0 - tc, tc], axis=-1)
-    else:
-        wr = _keys(tr)
-        wc = _keys(tc)
-    taps = array[ri[:, None, None] + np.arange(n)[None, :, None],
-                 ci[:, None, None] + np.arange(n)[None, None, :]]  # (M, n, n)
-    out[ok] = np.einsum("mi,mij,mj->m", wr, taps, wc)
-    return out
-
-
 @numba.njit(inline="always")
-def _keys4(t):  # pragma: no cover - compiled
+def _keys4(t: float) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     """Keys weights (a = -0.5) for taps at -1, 0, 1, 2, as :func:`_keys`, as a tuple (no
     scratch array: hot loops stay free of array reference counting)."""
     a = -0.5
@@ -123,15 +96,16 @@ def _keys4(t):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _nb_point_s(array, r, c, n):  # pragma: no cover - compiled
+def _nb_point_s(array: np.ndarray, r: float, c: float,
+                n: int) -> float:  # pragma: no cover - compiled
     """One point of :func:`sample` (n = 0 nearest, 2 bilinear, 4 bicubic): NaN outside the
     array or for a non-finite coordinate; NaN taps propagate. Scalars only."""
     rows, cols = array.shape
     if not (np.isfinite(r) and np.isfinite(c)):
         return np.nan
     if n == 0:
-        ri = math.floor(r + 0.5)
-        ci = math.floor(c + 0.5)
+        ri = math.floor(r + PIXEL_CENTRE)  # the pixel holding the point
+        ci = math.floor(c + PIXEL_CENTRE)
         if ri < 0 or ri >= rows or ci < 0 or ci >= cols:
             return np.nan
         return np.float64(array[int(ri), int(ci)])
@@ -168,13 +142,15 @@ def _nb_point_s(array, r, c, n):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _nb_point(array, r, c, n, wr, wc):  # pragma: no cover - compiled
+def _nb_point(array: np.ndarray, r: float, c: float, n: int, wr: np.ndarray,
+              wc: np.ndarray) -> float:  # pragma: no cover - compiled
     """:func:`_nb_point_s` (``wr, wc``: unused scratch, kept for the callers' signature)."""
     return _nb_point_s(array, r, c, n)
 
 
 @numba.njit(nogil=True, cache=True)
-def _nb_sample(array, row, col, n, out):  # pragma: no cover - compiled
+def _nb_sample(array: np.ndarray, row: np.ndarray, col: np.ndarray, n: int,
+               out: np.ndarray) -> None:  # pragma: no cover - compiled
     """Bilinear (n = 2) or bicubic (n = 4) values at (row, col) into ``out``."""
     wr = np.empty(4)
     wc = np.empty(4)

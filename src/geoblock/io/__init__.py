@@ -1,6 +1,5 @@
 """The one place geoblock opens files: sensor models, DEMs, images, point files and block files."""
 
-from geoblock._rasterio import open_quietly
 from geoblock.io.blocks import (
     Block,
     BlockDem,
@@ -15,6 +14,7 @@ from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
 from geoblock.io.metadata import Fields, XmlFields, read_xml
 from geoblock.io.models import open_model, write_model
 from geoblock.io.points import read_points, write_points
+from geoblock.io.rasters import open_quietly
 
 __all__ = [
     "Block",

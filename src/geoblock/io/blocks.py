@@ -63,8 +63,10 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from geoblock.errors import GeoblockIOError, ModelFormatError
-from geoblock.io._atomic import atomic_path
+import tomli_w
+
+from geoblock.errors import BlockFileError, GeoblockIOError
+from geoblock.io.files import write_text
 
 __all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage", "OpenedBlock",
            "dumps_toml", "open_block", "read_block",
@@ -72,11 +74,7 @@ __all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage"
 
 BLOCK_FORMAT_VERSION = 1
 _METHOD = re.compile(r"^[a-z][a-z0-9_-]*$")
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
-class BlockFileError(ModelFormatError):
-    """A block file is malformed (names the file and the field)."""
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
 
 def _readonly(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -458,93 +456,71 @@ def write_block(path: str | os.PathLike[str], block: Block) -> Path:
     path = Path(path)
     text = "# geoblock block file (docs: user-guide/simulation.md)\n" + dumps_toml(
         block_to_dict(block, path.parent))
-    with atomic_path(path, "block file ") as tmp:
-        tmp.write_text(text, encoding="utf-8")
+    write_text(path, text, "block file ")
     return path
 
 
-# ---------------------------------------------------------------------------- small TOML writer
-def _key(k: str) -> str:
-    return k if _BARE_KEY.fullmatch(k) else _string(k)
-
-
-def _string(s: str) -> str:
-    out = ['"']
-    for ch in s:
-        code = ord(ch)
-        if ch == '"':
-            out.append('\\"')
-        elif ch == "\\":
-            out.append("\\\\")
-        elif ch == "\n":
-            out.append("\\n")
-        elif ch == "\t":
-            out.append("\\t")
-        elif ch == "\r":
-            out.append("\\r")
-        elif code < 0x20 or code == 0x7F:
-            out.append(f"\\u{code:04X}")
-        else:
-            out.append(ch)
-    out.append('"')
-    return "".join(out)
-
-
-def _value(v: Any, where: str) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        text = repr(v)
-        return text if any(c in text for c in ".en") else text + ".0"
-    if isinstance(v, str | Path):
-        return _string(str(v))
-    if isinstance(v, list | tuple):
-        return "[" + ", ".join(_value(x, where) for x in v) + "]"
-    if isinstance(v, Mapping):
-        return "{" + ", ".join(f"{_key(str(k))} = {_value(x, where)}" for k, x in v.items()) + "}"
-    raise BlockFileError(f"TOML writer: {where}: cannot write a {type(v).__name__} ({v!r})")
-
-
-def _is_table_array(v: Any) -> bool:
-    return isinstance(v, list | tuple) and bool(v) and all(isinstance(x, Mapping) for x in v)
-
-
+# ---------------------------------------------------------------------------- TOML text
 def dumps_toml(data: Mapping[str, Any]) -> str:
-    """A TOML document of ``data`` (str, int, float incl. nan/inf, bool, lists, nested tables).
+    """A TOML document of ``data``; ``tomllib.loads`` gives it back.
 
-    Scalars and inline arrays of a table come first, then its sub-tables (``[a.b]``) and
-    arrays of tables (``[[a.b]]``); ``tomllib.loads`` gives ``data`` back.
+    Values may be str, int, float (``nan`` and ``inf`` included), bool, lists or tuples, and
+    mappings (nested tables); a :class:`pathlib.Path` is written as its text. ``tomli-w``
+    writes the keys and values; the layout is fixed so that the file reads, and can be edited,
+    top-down: each table's own keys first, then its sub-tables (``[a.b]``) and arrays of
+    tables (``[[images]]``, one section per item), each section after a blank line.
+
+    Raises
+    ------
+    BlockFileError
+        A value TOML cannot hold (names its key, e.g. ``images.0.raster``).
     """
-    lines: list[str] = []
+    return _table_text(_plain(data, ""), ())
 
-    def emit(table: Mapping[str, Any], prefix: tuple[str, ...]) -> None:
-        subtables = []
-        for k, v in table.items():
-            if isinstance(v, Mapping) or _is_table_array(v):
-                subtables.append((k, v))
-            else:
-                lines.append(f"{_key(str(k))} = {_value(v, '.'.join(prefix + (str(k),)))}")
-        for k, v in subtables:
-            name = prefix + (str(k),)
-            header = ".".join(_key(p) for p in name)
-            if isinstance(v, Mapping):
-                lines.append("")
-                lines.append(f"[{header}]")
-                emit(v, name)
-            else:
-                for item in v:
-                    lines.append("")
-                    lines.append(f"[[{header}]]")
-                    emit(item, name)
 
-    emit(data, ())
-    return "\n".join(lines).lstrip("\n") + "\n"
+def _table_text(table: dict[str, Any], name: tuple[str, ...]) -> str:
+    values = {k: v for k, v in table.items() if not _is_section(v)}
+    parts = [tomli_w.dumps(values)] if values else []
+    for key, value in table.items():
+        if not _is_section(value):
+            continue
+        header = ".".join(_key(part) for part in (*name, key))
+        if isinstance(value, dict):
+            parts.append(f"[{header}]\n" + _table_text(value, (*name, key)))
+        else:
+            parts.extend(f"[[{header}]]\n" + _table_text(item, (*name, key)) for item in value)
+    return "\n".join(parts)
+
+
+def _is_section(value: Any) -> bool:
+    """A table, or a non-empty array of tables: written as ``[...]`` / ``[[...]]`` sections."""
+    return isinstance(value, dict) or (
+        isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value))
+
+
+def _key(key: str) -> str:
+    """A key of a section header: bare if it can be, else quoted as tomli-w quotes strings."""
+    if _BARE_KEY.fullmatch(key):
+        return key
+    return tomli_w.dumps({"k": key}).removeprefix("k = ").removesuffix("\n")
+
+
+def _plain(value: Any, where: str) -> Any:
+    """``value`` with mappings as dicts, tuples as lists and paths as text, checked for TOML."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v, f"{where}.{k}" if where else str(k)) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v, f"{where}.{i}") for i, v in enumerate(value)]
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, bool | str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):  # numpy's float64 too, written as a plain float
+        return float(value)
+    raise BlockFileError(f"TOML writer: {where}: cannot write a {type(value).__name__} "
+                         f"({value!r})")
 
 
 # ---------------------------------------------------------------------------- opening
@@ -556,6 +532,11 @@ ADJUST_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
     "sigma_px": (int, float),
 })
 _COLLOCATION_KEYS = ("filtering_ratio", "d_max")
+
+
+def _is_option_kind(value: Any, kinds: tuple[type, ...]) -> bool:
+    """``value`` is one of ``kinds`` (a bool only where ``bool`` is one of them)."""
+    return isinstance(value, kinds) and (bool in kinds or not isinstance(value, bool))
 
 
 @dataclass(frozen=True, eq=False)
@@ -615,7 +596,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
         if key not in ADJUST_OPTIONS:
             raise BlockFileError(f"{where}: unknown option; options: {', '.join(ADJUST_OPTIONS)}")
         kinds = ADJUST_OPTIONS[key]
-        if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
+        if not _is_option_kind(value, kinds):
             raise BlockFileError(f"{where} must be a {' or '.join(k.__name__ for k in kinds)}, "
                                  f"got {value!r}")
         if key == "sigma_px":
@@ -650,8 +631,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     dem = None
     extra: dict[str, Any] = {}  # the Block's default DEM sigma unless the file gives one
     if spec.dem is not None:
-        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical,
-                       **({} if spec.dem.geoid is None else {"geoid": spec.dem.geoid}))
+        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical, geoid=spec.dem.geoid)
         if spec.dem.sigma is not None:
             extra["dem_sigma_m"] = spec.dem.sigma
     try:

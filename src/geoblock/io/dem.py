@@ -1,5 +1,10 @@
 """``open_dem``: every DEM source geoblock reads, as a :class:`~geoblock.dem.DemSource`;
-``write_dem``: a height grid written as a GeoTIFF that states its vertical datum."""
+``write_dem``: a height grid written as a GeoTIFF that states its vertical datum.
+
+This module sits above :mod:`geoblock.dem` (it builds its DEM classes) and imports it inside
+the functions: :mod:`geoblock.dem` reads its files through :mod:`geoblock.io.rasters`, and
+``import geoblock.io`` must not need a half-imported ``geoblock.dem``.
+"""
 
 from __future__ import annotations
 
@@ -7,25 +12,44 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
-from geoblock.dem.base import DemBase
-from geoblock.dem.constant import ConstantDem
-from geoblock.dem.filled import FilledDem
-from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
-from geoblock.dem.raster import VERTICALS, MosaicDem, RasterDem
-from geoblock.errors import DemError
+from geoblock.errors import DemError, InputTypeError
 from geoblock.io._atomic import atomic_path
+from geoblock.io.rasters import dataarray_georeferencing, is_dataarray, is_dataset, type_name
 
-__all__ = ["open_dem", "vertical_crs", "write_dem"]
+if TYPE_CHECKING:
+    import xarray as xr
+    from rasterio.io import DatasetReader
+
+    from geoblock.dem.geoid import Geoid
+    from geoblock.dem.protocol import DemSource
+    from geoblock.dem.raster import RasterDem
+
+__all__ = ["DemLike", "EngineDem", "as_dem", "open_dem", "vertical_crs", "write_dem"]
 
 PathLike = str | os.PathLike[str]
 
+if TYPE_CHECKING:
+    DemLike: TypeAlias = (PathLike | Sequence[PathLike] | Mapping[str, Any] | DemSource
+                          | DatasetReader | xr.DataArray | np.ndarray)
+    EngineDem: TypeAlias = DemLike | float
+else:
+    DemLike = EngineDem = Any
+"""``DemLike``: what :func:`open_dem` accepts as a DEM; ``EngineDem``: what the engines
+(:func:`geoblock.localize`, :func:`geoblock.orthorectify`, :func:`geoblock.ortho.mosaic`,
+``OutputGrid.for_model``) accept: the same, or a number (a constant height above the
+ellipsoid), through :func:`as_dem`."""
+
+_ACCEPTED = ("a path (str or os.PathLike) or a list of them, 'const:H', a DemSource or its "
+             "to_dict(), an open rasterio dataset, a georeferenced xarray.DataArray, or a numpy "
+             "array with transform= and crs=")
+
 
 def open_dem(
-    source: PathLike | Sequence[PathLike] | Mapping[str, Any] | DemBase,
+    source: DemLike,
     *,
     vertical: str | None = None,
     geoid: Geoid | PathLike | None = None,
@@ -33,19 +57,36 @@ def open_dem(
     interpolation: str = "bilinear",
     strict: bool = False,
     missing: float | None = None,
-) -> DemBase:
+    transform: Any = None,
+    crs: Any = None,
+    nodata_value: float | None = None,
+) -> DemSource:
     """Open a DEM; its heights come out above the WGS84 ellipsoid.
 
     Parameters
     ----------
-    source : str, os.PathLike, sequence of them, dict or DemSource
+    source : DemLike
         * a raster file rasterio opens: GeoTIFF, SRTM ``.hgt``, VRT, ... in any CRS;
-        * a list of such files (tiles, each in any CRS): a mosaic where each point takes the
-          first tile, in the order given, that has a height;
+        * a list of such files (tiles, each in any CRS; open rasterio datasets and
+          DataArrays too): a mosaic where each point takes the first tile, in the order
+          given, that has a height;
         * ``"const:H"``: ``H`` metres everywhere, above the ellipsoid (or above the geoid
           with ``vertical="geoid"``);
         * the ``to_dict()`` of a DEM opened before (how dask workers re-open it);
-        * a DEM object, returned as it is.
+        * a DEM object (any :class:`~geoblock.dem.DemSource`), returned as it is;
+        * an open rasterio dataset: a file dataset is re-opened by its name (the DEM its path
+          gives, read window by window); an in-memory one (``MemoryFile``, ``MEM`` driver) is
+          read into an :class:`~geoblock.dem.raster.ArrayDem` (band 1);
+        * an ``xarray.DataArray`` ``(y, x)`` or ``(1, y, x)``: its values (a dask-backed
+          array is computed once) with the CRS, geotransform and nodata it states the way
+          rioxarray writes them (a ``spatial_ref`` coordinate with ``crs_wkt`` and
+          ``GeoTransform``, ``_FillValue``; see
+          :func:`~geoblock.io.rasters.dataarray_georeferencing`), as an
+          :class:`~geoblock.dem.raster.ArrayDem`;
+        * a numpy array ``(R, C)`` with ``transform=`` and ``crs=``: an
+          :class:`~geoblock.dem.raster.ArrayDem`.
+
+        An in-memory DEM gives exactly the heights a file of the same pixels gives.
     vertical : {"geoid", "ellipsoid"} or None
         Vertical datum of the file's heights. ``None`` (default): as the file states it - a
         compound CRS with an EGM96 vertical part, a 3-D geographic CRS (ellipsoidal), or an
@@ -69,17 +110,32 @@ def open_dem(
         A height, metres above the ellipsoid, for every point where the DEM has none (voids
         left by ``nodata``, and outside its coverage): GDAL's ``RPC_DEM_MISSING_VALUE``. The
         result is a :class:`~geoblock.dem.FilledDem`.
+    transform : affine.Affine or sequence of 6, optional
+        Arrays only: the geotransform (pixel corners, rasterio order) of a numpy array, or
+        one overriding a DataArray's.
+    crs : pyproj.CRS, str or int, optional
+        Arrays only: the CRS of a numpy array (a compound CRS may state the vertical
+        datum), or one overriding a DataArray's.
+    nodata_value : float, optional
+        Arrays only: the value marking posts without a height (NaN always does), or one
+        overriding a DataArray's ``_FillValue``.
 
     Returns
     -------
     DemSource
-        :class:`~geoblock.dem.RasterDem`, :class:`~geoblock.dem.MosaicDem`,
-        :class:`~geoblock.dem.ConstantDem` or :class:`~geoblock.dem.ConstantGeoidDem`.
+        :class:`~geoblock.dem.RasterDem`, :class:`~geoblock.dem.raster.ArrayDem`,
+        :class:`~geoblock.dem.MosaicDem`, :class:`~geoblock.dem.ConstantDem`,
+        :class:`~geoblock.dem.ConstantGeoidDem`, :class:`~geoblock.dem.FilledDem` or the
+        DEM object given.
 
     Raises
     ------
     DemError
-        Unreadable file, unknown option, unstated vertical datum, geoid grid not found.
+        Unreadable file, unknown option, unstated vertical datum, geoid grid not found, an
+        array without its geotransform or CRS.
+    InputTypeError
+        ``source`` is none of the above (the message says what it is and what is accepted),
+        or ``transform``, ``crs`` or ``nodata_value`` were given for a file.
 
     Examples
     --------
@@ -87,36 +143,126 @@ def open_dem(
     >>> float(dem.height(5.0, 44.0))
     100.0
     """
+    from geoblock.dem.base import DemBase
+    from geoblock.dem.filled import FilledDem
+    from geoblock.dem.protocol import DemSource
+    from geoblock.dem.raster import VERTICALS, MosaicDem
+
     if missing is not None:
         inner = open_dem(source, vertical=vertical, geoid=geoid, nodata=nodata,
-                         interpolation=interpolation, strict=strict)
+                         interpolation=interpolation, strict=strict, transform=transform,
+                         crs=crs, nodata_value=nodata_value)
         try:
             return FilledDem(inner, missing)
         except ValueError as exc:
             raise DemError(f"open_dem: missing={missing!r}: {exc}") from None
     if vertical is not None and vertical not in VERTICALS:
         raise DemError(f"open_dem: vertical must be 'geoid', 'ellipsoid' or None, got {vertical!r}")
+    in_memory = isinstance(source, np.ndarray) or is_dataarray(source)
+    if not in_memory and (transform is not None or crs is not None or nodata_value is not None):
+        raise InputTypeError(
+            f"open_dem: transform=, crs= and nodata_value= describe an in-memory array; "
+            f"{type_name(source)} states its own georeferencing")
     if isinstance(source, DemBase):
         return source
     if isinstance(source, Mapping):
         return _from_dict(source)
-    options = dict(vertical=vertical, geoid=geoid, nodata=nodata, interpolation=interpolation,
-                   strict=strict)
+    options = _Options(vertical, geoid, nodata, interpolation, strict)
     if isinstance(source, str | os.PathLike):
         text = os.fspath(source)
         if text.startswith("const:"):
             return _constant(text, vertical, geoid)
-        return RasterDem(_existing(text), **options)
+        return options.tile(text)
+    if is_dataset(source) or in_memory:
+        return options.tile(source, transform=transform, crs=crs, nodata_value=nodata_value)
+    if isinstance(source, DemSource):  # a DEM of another kind (a plugin's, a user's)
+        return source
     if isinstance(source, Sequence) and not isinstance(source, bytes):
-        paths = list(source)
-        if not paths:
+        tiles = list(source)
+        if not tiles:
             raise DemError("open_dem: the list of DEM tiles is empty")
-        if len(paths) == 1:
-            return open_dem(paths[0], **options)
-        options.pop("strict")
-        tiles = [RasterDem(_existing(os.fspath(p)), **options) for p in paths]
-        return MosaicDem(tiles, strict=strict)
-    raise DemError(f"open_dem: cannot open a DEM from {type(source).__name__} {source!r}")
+        if len(tiles) == 1:
+            return open_dem(tiles[0], vertical=vertical, geoid=geoid, nodata=nodata,
+                            interpolation=interpolation, strict=strict)
+        return MosaicDem([options.tile(t, strict=False) for t in tiles], strict=strict)
+    raise InputTypeError(f"open_dem: cannot use {type_name(source)} as a DEM; accepted: "
+                         f"{_ACCEPTED}")
+
+
+def as_dem(dem: EngineDem) -> DemSource:
+    """The DEM an engine works on: a :class:`~geoblock.dem.DemSource` as it is, a number as a
+    :class:`~geoblock.dem.ConstantDem` (metres above the ellipsoid), anything else through
+    :func:`open_dem` (a path, an open rasterio dataset, a georeferenced DataArray, ...).
+
+    Raises
+    ------
+    DemError, InputTypeError
+        As :func:`open_dem`.
+    """
+    from geoblock.dem.base import DemBase
+    from geoblock.dem.constant import ConstantDem
+
+    if isinstance(dem, DemBase):
+        return dem
+    if isinstance(dem, int | float | np.integer | np.floating) and not isinstance(dem, bool):
+        return ConstantDem(float(dem))
+    return open_dem(dem)
+
+
+class _Options:
+    """The options of one :func:`open_dem` call, applied to each raster (tile) it opens."""
+
+    def __init__(self, vertical: str | None, geoid: Any, nodata: str | float,
+                 interpolation: str, strict: bool) -> None:
+        self.common: dict[str, Any] = dict(vertical=vertical, geoid=geoid, nodata=nodata,
+                                           interpolation=interpolation)
+        self.strict = strict
+
+    def tile(self, source: Any, *, strict: bool | None = None, transform: Any = None,
+             crs: Any = None, nodata_value: float | None = None) -> RasterDem:
+        """A :class:`RasterDem` (file) or :class:`ArrayDem` (pixels in memory) of ``source``."""
+        from geoblock.dem.raster import ArrayDem, RasterDem
+
+        options = dict(self.common, strict=self.strict if strict is None else strict)
+        if isinstance(source, str | os.PathLike):
+            return RasterDem(_existing(os.fspath(source)), **options)
+        if is_dataset(source):
+            if source.closed:
+                raise InputTypeError(f"open_dem: the rasterio dataset {source.name!r} is closed")
+            name = str(source.name)
+            if source.driver != "MEM" and name and not name.startswith("/vsimem/"):
+                return RasterDem(name, **options)  # a file: read window by window
+            return ArrayDem(source.read(1), source.transform, source.crs,
+                            nodata_value=source.nodatavals[0], scale=source.scales[0] or 1.0,
+                            offset=source.offsets[0] or 0.0, driver=source.driver,
+                            name=name or "<in-memory rasterio dataset>", **options)
+        if is_dataarray(source):
+            if source.ndim == 3 and source.shape[0] == 1:
+                source = source[0]
+            if source.ndim != 2:
+                raise DemError(f"open_dem: a DataArray DEM must be (y, x) or (1, y, x), got "
+                               f"dims {tuple(source.dims)}")
+            wkt, stated_transform, stated_nodata = dataarray_georeferencing(source)
+            transform = stated_transform if transform is None else transform
+            crs = wkt if crs is None else crs
+            name = f"<DataArray {source.name}>" if source.name is not None else "<DataArray>"
+            if transform is None or crs is None:
+                raise DemError(
+                    f"open_dem: the DataArray {name} is not georeferenced: it needs a "
+                    "spatial_ref coordinate with crs_wkt and GeoTransform attributes (as "
+                    "rioxarray writes them), or pass transform= and crs=")
+            return ArrayDem(np.asarray(source.values), transform, crs,
+                            nodata_value=stated_nodata if nodata_value is None else nodata_value,
+                            name=name, **options)
+        if isinstance(source, np.ndarray):
+            if transform is None or crs is None:
+                raise DemError("open_dem: a numpy array needs its georeferencing: "
+                               "open_dem(array, transform=..., crs=...) (transform: pixel "
+                               "corners, rasterio order)")
+            return ArrayDem(source, transform, crs, nodata_value=nodata_value, **options)
+        raise InputTypeError(f"open_dem: cannot use {type_name(source)} as a DEM tile; "
+                             "accepted: a path, an open rasterio dataset or a georeferenced "
+                             "xarray.DataArray")
 
 
 def _existing(path: str) -> str:
@@ -125,7 +271,10 @@ def _existing(path: str) -> str:
     raise DemError(f"DEM file not found: {path}")
 
 
-def _constant(text: str, vertical: str | None, geoid: Any) -> DemBase:
+def _constant(text: str, vertical: str | None, geoid: Any) -> DemSource:
+    from geoblock.dem.constant import ConstantDem
+    from geoblock.dem.geoid import ConstantGeoidDem, find_geoid
+
     try:
         h = float(text[len("const:"):])
     except ValueError:
@@ -138,11 +287,18 @@ def _constant(text: str, vertical: str | None, geoid: Any) -> DemBase:
         raise DemError(f"open_dem: {text!r}: {exc}") from None
 
 
-def _from_dict(data: Mapping[str, Any]) -> DemBase:
+def _from_dict(data: Mapping[str, Any]) -> DemSource:
+    from geoblock.dem.constant import ConstantDem
+    from geoblock.dem.filled import FilledDem
+    from geoblock.dem.geoid import ConstantGeoidDem, find_geoid
+    from geoblock.dem.raster import ArrayDem, MosaicDem, RasterDem
+
     kind = data.get("dem")
     try:
         if kind == "raster":
             return RasterDem.from_dict(dict(data))
+        if kind == "array":
+            return ArrayDem.from_dict(data)
         if kind == "mosaic":
             return MosaicDem.from_dict(dict(data))
         if kind == "filled":
@@ -152,8 +308,6 @@ def _from_dict(data: Mapping[str, Any]) -> DemBase:
                 return ConstantGeoidDem(float(data["h"]), find_geoid(data.get("geoid")))
             return ConstantDem(float(data["h"]))
         if kind == "grid":
-            import numpy as np
-
             from geoblock.dem.grid import GridDem
 
             heights = np.array([[np.nan if v is None else v for v in row]
@@ -198,6 +352,7 @@ def vertical_crs(crs: Any, vertical: str) -> Any:
     from pyproj.crs import CompoundCRS
 
     from geoblock.dem.grid import _is_lonlat
+    from geoblock.dem.raster import VERTICALS
 
     if vertical not in VERTICALS:
         raise DemError(f"write_dem: vertical must be 'ellipsoid' or 'geoid', got {vertical!r}")

@@ -12,6 +12,8 @@ import csv
 import io as _io
 import json
 import os
+import shutil
+import tempfile
 import tomllib
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -28,7 +30,9 @@ __all__ = [
     "read_json",
     "read_text",
     "read_toml",
+    "remove",
     "save_figure",
+    "staged_files",
     "write_bytes",
     "write_csv",
     "write_json",
@@ -89,7 +93,7 @@ def read_json(path: str | os.PathLike[str], what: str = "") -> Any:
 
 
 def write_with(
-    path: str | os.PathLike[str], write: Callable[[IO[bytes]], None], what: str = ""
+    path: str | os.PathLike[str], write: Callable[[IO[bytes]], object], what: str = ""
 ) -> Path:
     """Call ``write(file)`` on a binary temporary beside ``path``, then rename it to ``path``.
 
@@ -144,19 +148,19 @@ def write_csv(
     ``header`` is given) or sequences (then ``header`` is the first line, if given).
     """
     buffer = _io.StringIO()
-    rows = list(rows)
-    if rows and isinstance(rows[0], Mapping):
+    items: list[Any] = list(rows)
+    if items and isinstance(items[0], Mapping):
         fields = list(header) if header is not None else list(
-            dict.fromkeys(k for r in rows for k in r)  # type: ignore[union-attr]
+            dict.fromkeys(k for r in items for k in r)
         )
         writer: Any = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows(items)
     else:
         writer = csv.writer(buffer, lineterminator="\n")
         if header is not None:
             writer.writerow(header)
-        writer.writerows(rows)
+        writer.writerows(items)
     return write_text(path, buffer.getvalue(), what)
 
 
@@ -183,6 +187,24 @@ def make_directory(path: str | os.PathLike[str], what: str = "") -> Path:
     return path
 
 
+def remove(path: str | os.PathLike[str], what: str = "") -> None:
+    """Remove a file, a symbolic link (not its target) or a directory tree; absent is fine.
+
+    Raises
+    ------
+    GeoblockIOError
+        It cannot be removed (names the path).
+    """
+    path = Path(path)
+    try:
+        if path.is_symlink() or path.is_file():
+            path.unlink()
+        elif path.is_dir():
+            shutil.rmtree(path)
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot remove {what}{path}: {exc.strerror or exc}") from exc
+
+
 @contextmanager
 def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
     """A temporary directory that replaces the directory ``path`` as a whole on success.
@@ -192,3 +214,54 @@ def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[P
     """
     with _atomic_directory(path, what) as tmp:
         yield tmp
+
+
+@contextmanager
+def staged_files(
+    paths: Sequence[str | os.PathLike[str]], what: str = ""
+) -> Iterator[list[Path]]:
+    """Write several files all or nothing.
+
+    Yields one staging path per destination, each in a hidden temporary folder beside its
+    destination. When the block succeeds every staged file (and any sidecar a writer put
+    beside it, such as a ``.aux.xml``) is moved into place; otherwise none is. The staging
+    folders are removed either way. A destination that exists is copied to its staging path
+    first, so that writers which update a file in place (GeoTIFF tags) see it.
+
+    Raises
+    ------
+    GeoblockIOError
+        A destination's folder does not exist, or a file cannot be staged or moved (names it).
+    """
+    finals = [Path(p) for p in paths]
+    for final in finals:
+        if not final.parent.is_dir():
+            raise GeoblockIOError(
+                f"cannot write {what}{final}: directory {str(final.parent)!r} does not exist"
+            )
+    stages: list[Path] = []
+    try:
+        staged = []
+        for k, final in enumerate(finals):
+            try:
+                stage = Path(tempfile.mkdtemp(prefix=f".geoblock-stage-{k}-", dir=final.parent))
+                stages.append(stage)
+                if final.exists():
+                    shutil.copy2(final, stage / final.name)
+            except OSError as exc:
+                raise GeoblockIOError(
+                    f"cannot write {what}{final}: {exc.strerror or exc}"
+                ) from exc
+            staged.append(stage / final.name)
+        yield staged
+        for stage, final in zip(stages, finals, strict=True):
+            for item in sorted(stage.iterdir()):  # the file and any sidecar its writer made
+                try:
+                    os.replace(item, final.parent / item.name)
+                except OSError as exc:
+                    raise GeoblockIOError(
+                        f"cannot write {what}{final.parent / item.name}: {exc.strerror or exc}"
+                    ) from exc
+    finally:
+        for stage in stages:
+            shutil.rmtree(stage, ignore_errors=True)

@@ -1,9 +1,12 @@
 """Source images (read lazily, window by window) and orthoimage writing (tiled GeoTIFF / COG).
 
-* :func:`open_image` returns an :class:`ImageSource`: the path and what the orthorectifier
-  needs to know before reading (shape, bands, dtype, nodata, georeferencing). It holds no open
-  dataset, so it pickles by path to dask workers; :meth:`ImageSource.read` reads one window
-  through a dataset kept open per thread (:func:`geoblock._rasterio.cached_dataset`).
+* :func:`open_image` returns an :class:`ImageSource` for a file: the path and what the
+  orthorectifier needs to know before reading (shape, bands, dtype, nodata, georeferencing).
+  It holds no open dataset, so it pickles by path to dask workers; :meth:`ImageSource.read`
+  reads one window through a dataset kept open per thread
+  (:func:`geoblock.io.rasters.cached_dataset`). For pixels already in memory (a numpy array,
+  an ``xarray.DataArray``, an in-memory rasterio dataset) it returns an :class:`ArrayImage`,
+  which reads its windows from the array and pickles with it.
 * :func:`write_ortho` computes a lazy ``(band, y, x)`` :class:`xarray.DataArray` chunk by chunk
   and writes it as a tiled GeoTIFF or a COG, under a temporary name in the destination
   directory, renamed to ``path`` only when everything was written: a failed or interrupted run
@@ -17,25 +20,43 @@ import math
 import os
 import warnings
 from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
-from geoblock._rasterio import cached_dataset, open_quietly
-from geoblock.errors import EmptyOutputError, EmptyOutputWarning, GeoblockIOError
+from geoblock.errors import (
+    EmptyOutputError,
+    EmptyOutputWarning,
+    GeoblockIOError,
+    InputTypeError,
+)
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
+from geoblock.io.rasters import (
+    dataarray_georeferencing,
+    is_dataarray,
+    is_dataset,
+    open_quietly,
+    read_window,
+    type_name,
+)
 
-__all__ = ["ImageSource", "open_image", "write_image", "write_ortho"]
+if TYPE_CHECKING:
+    import xarray as xr
+    from rasterio.io import DatasetReader
+
+__all__ = ["ArrayImage", "ImageLike", "ImageSource", "OpenedImage", "open_image", "write_image",
+           "write_ortho"]
 
 PathLike = str | os.PathLike[str]
 
 
 @dataclass(frozen=True)
 class ImageSource:
-    """A raster image read lazily by window.
+    """A raster image file read lazily by window.
 
     Attributes
     ----------
@@ -70,6 +91,11 @@ class ImageSource:
     crs: Any = None
     transform: Any = None
 
+    @property
+    def name(self) -> str:
+        """What to call the image in messages: its path."""
+        return self.path
+
     def read(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Read a window of every band.
 
@@ -82,19 +108,16 @@ class ImageSource:
         -------
         ndarray, (bands, R, C)
             Of :attr:`dtype`.
-        """
-        import rasterio
-        from rasterio.windows import Window
 
+        Raises
+        ------
+        GeoblockIOError
+            The file cannot be read (names it).
+        """
         if window is None:
             window = (0, self.shape[0], 0, self.shape[1])
-        r0, r1, c0, c1 = (int(v) for v in window)
-        try:
-            # kept open per thread: one window per ortho/mosaic chunk, no open per read
-            ds = cached_dataset(self.path)
-            return ds.read(window=Window(c0, r0, c1 - c0, r1 - r0))
-        except rasterio.errors.RasterioIOError as exc:
-            raise GeoblockIOError(f"cannot read the image {self.path}: {exc}") from exc
+        # kept open per thread: one window per ortho/mosaic chunk, no open per read
+        return read_window(self.path, window, what="the image ")
 
     def __dask_tokenize__(self) -> tuple:
         try:
@@ -107,48 +130,228 @@ class ImageSource:
                 None if self.transform is None else tuple(self.transform), stamp)
 
 
-def open_image(path: PathLike | ImageSource) -> ImageSource:
-    """Open a raster image for windowed reading.
+@dataclass(frozen=True, eq=False)
+class ArrayImage:
+    """An image held in memory, read by window like an :class:`ImageSource`.
+
+    It pickles with its pixels (to dask workers: in-memory images suit images that fit in
+    memory; a large image is better given as a file, read window by window).
 
     Parameters
     ----------
-    path : str, os.PathLike or ImageSource
-        Any raster rasterio opens (GeoTIFF, JP2, VRT, ...). An :class:`ImageSource` is
-        returned as it is.
+    array : ndarray, (R, C) or (bands, R, C)
+        The pixels, any real numeric dtype; kept as a read-only view (not copied).
+    nodata : float, optional
+        The value of pixels without data.
+    crop_offset : (float, float), optional
+        ``(row0, col0)`` of the image's first pixel in a larger scene (as
+        :attr:`ImageSource.crop_offset`).
+    crs : rasterio.crs.CRS, optional
+        The image's CRS (an ortho's); None for raw sensor geometry.
+    transform : affine.Affine, optional
+        The image's geotransform (rasterio order); None for raw sensor geometry.
+    name : str
+        What to call the image in messages.
+
+    Raises
+    ------
+    InputTypeError
+        ``array`` is not 2-D or 3-D with a real numeric dtype.
+    """
+
+    array: np.ndarray
+    nodata: float | None = None
+    crop_offset: tuple[float, float] | None = None
+    crs: Any = None
+    transform: Any = None
+    name: str = "<in-memory image>"
+
+    def __post_init__(self) -> None:
+        data = np.asarray(self.array)
+        if data.ndim == 2:
+            data = data[None]
+        if data.ndim != 3 or min(data.shape) < 1 or data.dtype.kind not in "biuf":
+            raise InputTypeError(
+                f"{self.name}: an image array must be (R, C) or (bands, R, C) of a real "
+                f"numeric dtype, got shape {np.shape(self.array)} and dtype {data.dtype}")
+        view = data.view()
+        view.flags.writeable = False
+        object.__setattr__(self, "array", view)
+
+    @property
+    def path(self) -> str:
+        """:attr:`name` (an in-memory image has no file; messages name it so)."""
+        return self.name
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)``, pixels."""
+        return (int(self.array.shape[1]), int(self.array.shape[2]))
+
+    @property
+    def bands(self) -> int:
+        """Number of bands."""
+        return int(self.array.shape[0])
+
+    @property
+    def dtype(self) -> str:
+        """NumPy dtype name of the pixels."""
+        return str(self.array.dtype)
+
+    def read(self, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """A window of every band, ``(bands, R, C)``, a copy (as :meth:`ImageSource.read`)."""
+        if window is None:
+            return self.array.copy()
+        r0, r1, c0, c1 = (int(v) for v in window)
+        return self.array[:, r0:r1, c0:c1].copy()
+
+    def __dask_tokenize__(self) -> tuple:
+        from dask.base import tokenize
+
+        return ("ArrayImage", tokenize(self.array), self.nodata, self.crop_offset,
+                None if self.crs is None else str(self.crs),
+                None if self.transform is None else tuple(self.transform), self.name)
+
+
+OpenedImage: TypeAlias = ImageSource | ArrayImage
+"""What :func:`open_image` returns: an image read window by window (``shape``, ``bands``,
+``dtype``, ``nodata``, ``crop_offset``, ``crs``, ``transform``, ``read(window)``)."""
+
+if TYPE_CHECKING:
+    ImageLike: TypeAlias = (PathLike | ImageSource | ArrayImage | DatasetReader | xr.DataArray
+                            | np.ndarray)
+else:
+    ImageLike = Any
+"""What :func:`open_image` (hence :func:`geoblock.orthorectify`) accepts as an image."""
+
+_ACCEPTED = ("a path (str or os.PathLike), an ImageSource or ArrayImage, an open rasterio "
+             "dataset, an xarray.DataArray (band, y, x) or (y, x), or a numpy array (R, C) or "
+             "(bands, R, C)")
+
+
+def open_image(
+    source: ImageLike,
+    *,
+    nodata: float | None = None,
+    transform: Any = None,
+    crs: Any = None,
+) -> OpenedImage:
+    """Open an image for windowed reading: a file, or pixels already in memory.
+
+    Parameters
+    ----------
+    source : str, os.PathLike, ImageSource, ArrayImage, rasterio dataset, DataArray or ndarray
+        * a raster file rasterio opens (GeoTIFF, JP2, VRT, ...): an :class:`ImageSource`;
+        * an :class:`ImageSource` or :class:`ArrayImage`: returned as it is;
+        * an open rasterio dataset: re-opened by its name when it is a file (the same
+          :class:`ImageSource` as its path gives); an in-memory one (``MemoryFile``, the
+          ``MEM`` driver) is read into an :class:`ArrayImage`;
+        * an ``xarray.DataArray`` ``(band, y, x)`` or ``(y, x)``: its values (a dask-backed
+          array is computed once) in an :class:`ArrayImage`, with the nodata
+          (``_FillValue``), CRS and geotransform it states as rioxarray writes them
+          (:func:`~geoblock.io.rasters.dataarray_georeferencing`);
+        * a numpy array ``(R, C)`` or ``(bands, R, C)``: an :class:`ArrayImage` (raw sensor
+          geometry needs no geotransform).
+    nodata, transform, crs : optional
+        For arrays only (numpy arrays and DataArrays, overriding what a DataArray states): the
+        pixels' nodata value, their geotransform (rasterio order; a pixel-unit one states a
+        crop offset, as for files) and CRS.
 
     Returns
     -------
-    ImageSource
-        With :attr:`~ImageSource.crop_offset` when the raster has a pixel-unit geotransform
-        (a crop of a larger scene, see :func:`pixel_crop_offset`).
+    ImageSource or ArrayImage
+        With ``crop_offset`` when the geotransform is pixel-unit (a crop of a larger scene,
+        see :func:`pixel_crop_offset`).
 
     Raises
     ------
     GeoblockIOError
         The file is missing or is not a raster.
+    InputTypeError
+        ``source`` is none of the above (the message says what it is), or ``nodata``,
+        ``transform`` or ``crs`` were given for a file.
     """
-    if isinstance(path, ImageSource):
-        return path
+    in_memory = isinstance(source, np.ndarray) or is_dataarray(source)
+    if not in_memory and (nodata is not None or transform is not None or crs is not None):
+        raise InputTypeError(
+            f"open_image: nodata=, transform= and crs= describe an in-memory array; "
+            f"{type_name(source)} states its own")
+    if isinstance(source, ImageSource | ArrayImage):
+        return source
+    if isinstance(source, str | os.PathLike):
+        return _open_file(os.fspath(source))
+    if is_dataset(source):
+        return _from_dataset(source)
+    if is_dataarray(source):
+        return _from_dataarray(source, nodata, transform, crs)
+    if isinstance(source, np.ndarray):
+        return _from_array(source, nodata, transform, crs, "<in-memory image>")
+    raise InputTypeError(f"open_image: cannot use {type_name(source)} as an image; accepted: "
+                         f"{_ACCEPTED}")
+
+
+def _open_file(name: str) -> ImageSource:
     import rasterio
 
-    name = os.fspath(path)
     if os.path.exists(name):
         name = str(Path(name).resolve())
     try:
         with open_quietly(name) as ds:
-            nodata = ds.nodata
-            return ImageSource(
-                path=name,
-                shape=(int(ds.height), int(ds.width)),
-                bands=int(ds.count),
-                dtype=str(np.dtype(ds.dtypes[0])),
-                nodata=None if nodata is None else float(nodata),
-                crop_offset=pixel_crop_offset(ds.transform, ds.crs),
-                crs=ds.crs,
-                transform=ds.transform,
-            )
+            return _image_source(name, ds)
     except rasterio.errors.RasterioIOError as exc:
         raise GeoblockIOError(f"cannot open the image {name}: {exc}") from exc
+
+
+def _image_source(name: str, ds: Any) -> ImageSource:
+    nodata = ds.nodata
+    return ImageSource(
+        path=name,
+        shape=(int(ds.height), int(ds.width)),
+        bands=int(ds.count),
+        dtype=str(np.dtype(ds.dtypes[0])),
+        nodata=None if nodata is None else float(nodata),
+        crop_offset=pixel_crop_offset(ds.transform, ds.crs),
+        crs=ds.crs,
+        transform=ds.transform,
+    )
+
+
+def _from_dataset(ds: Any) -> ImageSource | ArrayImage:
+    """A file dataset by its name (the path route); an in-memory one read into memory."""
+    if ds.closed:
+        raise InputTypeError(f"open_image: the rasterio dataset {ds.name!r} is closed")
+    name = str(ds.name)
+    if ds.driver != "MEM" and not name.startswith("/vsimem/") and name:
+        return _open_file(name)
+    nodata = ds.nodata
+    return ArrayImage(ds.read(), nodata=None if nodata is None else float(nodata),
+                      crop_offset=pixel_crop_offset(ds.transform, ds.crs), crs=ds.crs,
+                      transform=ds.transform, name=name or "<in-memory rasterio dataset>")
+
+
+def _from_dataarray(data: Any, nodata: float | None, transform: Any, crs: Any) -> ArrayImage:
+    if data.ndim not in (2, 3):
+        raise InputTypeError(f"open_image: a DataArray image must be (band, y, x) or (y, x), "
+                             f"got dims {tuple(data.dims)}")
+    wkt, stated_transform, stated_nodata = dataarray_georeferencing(data)
+    if crs is None and wkt is not None:
+        import rasterio.crs
+
+        crs = rasterio.crs.CRS.from_wkt(wkt)
+    return _from_array(np.asarray(data.values), stated_nodata if nodata is None else nodata,
+                       stated_transform if transform is None else transform, crs,
+                       f"<DataArray {data.name}>" if data.name is not None else "<DataArray>")
+
+
+def _from_array(array: np.ndarray, nodata: float | None, transform: Any, crs: Any,
+                name: str) -> ArrayImage:
+    from affine import Affine
+
+    if transform is not None and not isinstance(transform, Affine):
+        transform = Affine(*tuple(transform)[:6])
+    offset = pixel_crop_offset(transform, crs) if transform is not None else None
+    return ArrayImage(array, nodata=None if nodata is None else float(nodata),
+                      crop_offset=offset, crs=crs, transform=transform, name=name)
 
 
 def pixel_crop_offset(transform: Any, crs: Any = None) -> tuple[float, float] | None:
@@ -214,7 +417,8 @@ def _distributed_client(scheduler: Any) -> Any:
     return None
 
 
-def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool):
+def _iter_blocks(array: Any, scheduler: Any, in_flight: int,
+                 progress: bool) -> Iterator[tuple[int, int, np.ndarray]]:
     """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array in row-major chunk order,
     computing up to ``in_flight`` chunks ahead of the one yielded (finished chunks wait for
     their turn: the order of the writes, hence the file's bytes, never depends on which chunk
@@ -269,7 +473,8 @@ def _compute_one(delayed: Any) -> Any:
     return dask.compute(delayed, scheduler="synchronous")[0]
 
 
-def _in_order(items: list, in_flight: int, submit: Any, result: Any, drop: Any):
+def _in_order(items: list, in_flight: int, submit: Any, result: Any,
+              drop: Any) -> Iterator[tuple[int, int, Any]]:
     """Yield ``(row0, col0, block)`` of ``items`` (``(row0, col0, delayed)``) in their order,
     with up to ``in_flight`` of them submitted ahead of the one yielded: ``submit(delayed)``
     starts a computation and returns its handle, ``result(handle)`` waits for its block,
@@ -292,7 +497,7 @@ def _in_order(items: list, in_flight: int, submit: Any, result: Any, drop: Any):
             drop(handle)
 
 
-def _iter_threads(items: list, in_flight: int, bar: Any):
+def _iter_threads(items: list, in_flight: int, bar: Any) -> Iterator[tuple[int, int, Any]]:
     """:func:`_iter_blocks` on a thread pool: up to ``in_flight`` chunks computed ahead of the
     one yielded, yielded in ``items`` order."""
     import concurrent.futures as cf

@@ -1,18 +1,22 @@
-"""open_model / write_model: dispatch to the plugins' reader and writer hooks."""
+"""open_model / write_model: dispatch to the plugins' reader and writer hooks; geoblock's own
+model JSON (``to_dict()`` as a file), which the built-in plugin reads and writes through
+:func:`read_model_json` and :func:`write_model_json`."""
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from geoblock.errors import GeoblockIOError, UnsupportedFormatError
+from geoblock.errors import GeoblockIOError, ModelFormatError, UnsupportedFormatError
+from geoblock.io.files import write_text
 from geoblock.models.protocol import SensorModel
 
 if TYPE_CHECKING:  # pragma: no cover
     from geoblock.plugins import HookFailure
 
-__all__ = ["open_model", "write_model"]
+__all__ = ["open_model", "read_model_json", "write_model", "write_model_json"]
 
 _FORMATS_BY_SUFFIX = {".json": "json"}
 
@@ -57,8 +61,7 @@ def open_model(
     ModelFormatError
         A reader recognised the file but found it invalid.
     """
-    from geoblock.models.registry import get_registry
-    from geoblock.plugins import call_firstresult, get_plugin_manager
+    from geoblock.plugins import call_firstresult, get_plugin_manager, get_registry
 
     path = Path(path)
     if not (path.is_file() or path.is_dir()):  # a directory: a product (e.g. SPOT DIMAP)
@@ -140,3 +143,53 @@ def write_model(
             f"Writers consulted: {', '.join(consulted)}{_failed(failures)}"
         )
     return path
+
+
+def read_model_json(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The ``to_dict()`` mapping in a geoblock model JSON file, or None if it is not one.
+
+    A model JSON file has the suffix ``.json`` (any case) and holds a JSON object with a string
+    ``"model"`` and a ``"schema_version"``. Anything else (a directory, another suffix, text
+    that is not UTF-8 or not JSON, another JSON document) gives None, so that other readers can
+    be asked.
+
+    Raises
+    ------
+    GeoblockIOError
+        A ``.json`` file that exists but cannot be read (names the file).
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".json" or path.is_dir():
+        return None
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise GeoblockIOError(f"cannot read model JSON {str(path)!r}: "
+                              f"{exc.strerror or exc}") from exc
+    try:
+        data = json.loads(raw.decode("utf-8-sig"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    if isinstance(data, dict) and isinstance(data.get("model"), str) and "schema_version" in data:
+        return data
+    return None
+
+
+def write_model_json(model: SensorModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model.to_dict()`` as geoblock model JSON (sorted keys, atomically).
+
+    Raises
+    ------
+    ModelFormatError
+        ``to_dict()`` holds something JSON cannot represent (NaN, infinity, an object); the
+        message names the file and the model.
+    GeoblockIOError
+        The file cannot be written.
+    """
+    try:
+        text = json.dumps(model.to_dict(), indent=1, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ModelFormatError(
+            f"{path}: model {model.name!r} is not JSON-safe (to_dict() holds {exc})"
+        ) from exc
+    return write_text(path, text + "\n", "model JSON ")

@@ -18,7 +18,7 @@ from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
-from geoblock.errors import GeoblockIOError, ModelFormatError
+from geoblock.errors import GeoblockIOError, PointFileError
 
 if TYPE_CHECKING:
     from geoblock.adjust.observations import GroundPoints, ImagePoints
@@ -29,10 +29,6 @@ NUMERIC_COLUMNS = frozenset(
     {"lon", "lat", "h", "row", "col", "x", "y", "z", "sigma", "sigma_row", "sigma_col",
      "sigma_e", "sigma_n", "sigma_h"}
 )
-
-
-class PointFileError(ModelFormatError):
-    """A point file is malformed (names the file, line and column)."""
 
 
 def read_points(
@@ -115,7 +111,7 @@ def read_points(
 def _read_text(source: str | os.PathLike[str] | IO[str]) -> tuple[str, str]:
     if hasattr(source, "read"):
         name = str(getattr(source, "name", "<stream>"))
-        return name, _decoded(name, source.read)  # type: ignore[union-attr]
+        return name, _decoded(name, source.read)
     if str(source) == "-":
         return "<stdin>", _decoded("<stdin>", sys.stdin.read)
     path = Path(source)

@@ -2,16 +2,18 @@
 crops."""
 
 from geoblock._array import broadcast_float64, warn_status
-from geoblock.models.base import SensorModelBase, image_shape
+from geoblock.models.base import KernelResult, SensorModelBase, image_shape
 from geoblock.models.corrections import ImageCorrection
 from geoblock.models.crop import CroppedModel, model_for_image
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
-from geoblock.models.registry import ModelRegistry, from_dict, get_registry
+from geoblock.models.registry import ModelRegistry
+from geoblock.plugins import from_dict, get_registry
 
 __all__ = [
     "CroppedModel",
     "ImageCorrection",
+    "KernelResult",
     "ModelRegistry",
     "ParameterSet",
     "SensorModel",

@@ -17,14 +17,16 @@ import abc
 import json
 import warnings
 from collections.abc import Callable, Collection, Mapping
-from typing import Any, ClassVar, Self
+from typing import Any, ClassVar, Self, TypeAlias
 
 import numpy as np
+from numpy.typing import NDArray
 
 from geoblock import coords
 from geoblock._array import broadcast_float64, warn_status
 from geoblock.errors import GeoblockError, ModelFormatError, ParameterSetError
 from geoblock.models.parameters import ParameterSet
+from geoblock.pixels import image_domain
 from geoblock.typing import (
     ArrayLike,
     EcefCoords,
@@ -39,7 +41,12 @@ __all__ = ["SensorModelBase", "canonical_json", "image_shape"]
 
 _CONVERGED = np.uint8(Status.CONVERGED)
 
-Kernel = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple]
+KernelResult: TypeAlias = (
+    tuple[Float64Array, Float64Array] | tuple[Float64Array, Float64Array, NDArray[Any]]
+)
+"""What a kernel returns: ``(a, b)`` or ``(a, b, status)``, each ``(N,)`` (status: integer
+:class:`~geoblock.typing.Status` codes)."""
+Kernel = Callable[[Float64Array, Float64Array, Float64Array], KernelResult]
 
 
 def canonical_json(data: Mapping[str, Any]) -> str:
@@ -270,7 +277,8 @@ class SensorModelBase(abc.ABC):
             )
 
     # ---------------------------------------------------------------- kernels
-    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: Float64Array, lat: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         """The ground -> image kernel an implementer writes (or inherits).
 
         Called by :meth:`project` with flat, finite, float64 arrays of one length ``(N,)``
@@ -293,7 +301,8 @@ class SensorModelBase(abc.ABC):
         """
         return self._newton_ground_to_image(lon, lat, h)
 
-    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: Float64Array, col: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         """The image -> ground kernel an implementer writes (or inherits).
 
         Called by :meth:`backproject` with flat, finite, float64 arrays of one length ``(N,)``.
@@ -526,7 +535,7 @@ class SensorModelBase(abc.ABC):
         if h is None:
             h = 0.5 * (self.height_range[0] + self.height_range[1])
         t = np.linspace(0.0, 1.0, n, endpoint=False)
-        r0, r1, c0, c1 = -0.5, rows - 0.5, -0.5, cols - 0.5
+        r0, c0, r1, c1 = image_domain((rows, cols))
         row = np.concatenate(
             [np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t]
         )
@@ -539,12 +548,12 @@ class SensorModelBase(abc.ABC):
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return canonical_json(self.to_dict()) == canonical_json(other.to_dict())  # type: ignore[attr-defined]
+        return canonical_json(self.to_dict()) == canonical_json(other.to_dict())
 
     def __hash__(self) -> int:
         return hash(canonical_json(self.to_dict()))
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(self) -> tuple[Callable[[Mapping[str, Any]], Self], tuple[dict[str, Any]]]:
         return (type(self).from_dict, (self.to_dict(),))
 
     def __dask_tokenize__(self) -> tuple[str, str]:
@@ -559,7 +568,8 @@ class SensorModelBase(abc.ABC):
         )
 
     # ---------------------------------------------------------------- Newton inversions
-    def _newton_image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def _newton_image_to_ground(self, row: Float64Array, col: Float64Array, h: Float64Array
+                                ) -> KernelResult:
         """Backproject by Newton iteration on ``ground_to_image`` in (lon, lat).
 
         Start: a linearisation at ``ground_seed()``. Each iteration uses a forward-difference
@@ -592,7 +602,8 @@ class SensorModelBase(abc.ABC):
             stall_tol=self.newton_stall_px,
         )
 
-    def _newton_ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def _newton_ground_to_image(self, lon: Float64Array, lat: Float64Array, h: Float64Array
+                                ) -> KernelResult:
         """Project by Newton iteration on ``image_to_ground`` in (row, col).
 
         The residual is the ground miss in local metres (east, north); the Jacobian is a
@@ -640,7 +651,8 @@ class SensorModelBase(abc.ABC):
         out[s != _CONVERGED] = np.nan
         return out
 
-    def _backward_flat(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def _backward_flat(self, row: Float64Array, col: Float64Array, h: Float64Array
+                       ) -> tuple[Float64Array, Float64Array]:
         lo, la, s = _unpack(
             self.image_to_ground(row, col, h), row.shape[0], self, "image_to_ground"
         )
@@ -649,7 +661,8 @@ class SensorModelBase(abc.ABC):
         la = np.where(bad, np.nan, la)
         return lo, la
 
-    def _jacobian_lonlat(self, lon, lat, h, f) -> np.ndarray:
+    def _jacobian_lonlat(self, lon: Float64Array, lat: Float64Array, h: Float64Array,
+                         f: Float64Array) -> Float64Array:
         """(N, 2, 2) d(row, col)/d(lon, lat) by forward differences of 1e-6 degree."""
         step = 1e-6
         j_lon = (self._forward_flat(lon + step, lat, h) - f) / step
@@ -672,7 +685,8 @@ def _clamp_lonlat(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def _unpack(result: tuple, n: int, model: object, kernel: str) -> tuple:
+def _unpack(result: object, n: int, model: object, kernel: str,
+            ) -> tuple[Float64Array, Float64Array, NDArray[np.uint8]]:
     """Validate a kernel's ``(a, b[, status])`` result for ``n`` points."""
     if not isinstance(result, tuple) or len(result) not in (2, 3):
         raise GeoblockError(

@@ -23,7 +23,7 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from geoblock.models.base import SensorModelBase
+from geoblock.models.base import KernelResult, SensorModelBase
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array, Status
@@ -78,7 +78,7 @@ class ImageSpaceCorrection(SensorModelBase):
 
     # ------------------------------------------------------------------ correction
     @abc.abstractmethod
-    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _correction(self, r: Float64Array, c: Float64Array) -> tuple[Float64Array, Float64Array]:
         """The correction at the wrapped model's image coordinates.
 
         Parameters
@@ -94,17 +94,18 @@ class ImageSpaceCorrection(SensorModelBase):
             Of the corrected coordinates ``(r, c) + delta`` with respect to ``(r, c)``.
         """
 
-    def _offset(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+    def _offset(self, r: Float64Array, c: Float64Array) -> Float64Array:
         """``delta`` (N, 2) of :meth:`_correction` alone; override when it is cheaper."""
         return self._correction(r, c)[0]
 
-    def _start(self, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _start(self, row: Float64Array, col: Float64Array) -> tuple[Float64Array, Float64Array]:
         """Newton start ``(r0, c0)`` (N,) for corrected ``(row, col)``; fresh arrays (the
         inversion updates them in place). Default: the corrected coordinates themselves."""
         return row.copy(), col.copy()
 
     # ------------------------------------------------------------------ kernels
-    def ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon: Float64Array, lat: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         (r, c), status = self._model.project_with_status(lon, lat, h)
         delta = self._offset(r, c)
         return r + delta[..., 0], c + delta[..., 1], status
@@ -115,7 +116,8 @@ class ImageSpaceCorrection(SensorModelBase):
         return invert_correction(self._correction, row, col, r0, c0,
                                  self.inversion_tolerance_px, self.inversion_max_iterations)
 
-    def image_to_ground(self, row, col, h):
+    def image_to_ground(self, row: Float64Array, col: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         r, c, status = self._uncorrect(row, col)
         (lon, lat, _), inner = self._model.backproject_with_status(r, c, h)
         return lon, lat, np.maximum(status, inner)
@@ -201,14 +203,15 @@ class ImageCorrection(ImageSpaceCorrection):
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
-        from geoblock.models.registry import from_dict
+        from geoblock.plugins import from_dict
 
         params = ParameterSet.from_dict(data["parameters"])
         return cls(from_dict(data["base"]), int(data["order"]), params.values,
                    params.sigmas, params.adjustable)
 
     # ------------------------------------------------------------------ polynomial
-    def _basis(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _basis(self, r: Float64Array, c: Float64Array,
+               ) -> tuple[Float64Array, Float64Array, Float64Array]:
         """Terms (N, n) and their derivatives d/dr, d/dc (N, n) at image coordinates."""
         s = self._scale
         u = (r - self._origin[0]) / s
@@ -219,7 +222,7 @@ class ImageCorrection(ImageSpaceCorrection):
         d_v = [zero, zero, one, zero, u, 2 * v][: _N_TERMS[self._order]]
         return (np.stack(terms, -1), np.stack(d_u, -1) / s, np.stack(d_v, -1) / s)
 
-    def _correction(self, r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _correction(self, r: Float64Array, c: Float64Array) -> tuple[Float64Array, Float64Array]:
         """(N, 2) corrections and the (N, 2, 2) Jacobian of the corrected coords wrt (r, c)."""
         n = _N_TERMS[self._order]
         a, b = self._parameters.values[:n], self._parameters.values[n:]
@@ -253,7 +256,7 @@ class ImageCorrection(ImageSpaceCorrection):
 
 
 def invert_correction(
-    correction: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    correction: Callable[[Float64Array, Float64Array], tuple[Float64Array, Float64Array]],
     row: np.ndarray, col: np.ndarray, r: np.ndarray, c: np.ndarray,
     tolerance_px: float, max_iterations: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

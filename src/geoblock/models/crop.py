@@ -22,10 +22,8 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar, Self
 
-import numpy as np
-
 from geoblock.errors import CropError, ModelFormatError
-from geoblock.models.base import SensorModelBase, image_shape
+from geoblock.models.base import KernelResult, SensorModelBase, image_shape
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array
@@ -117,11 +115,11 @@ class CroppedModel(SensorModelBase):
 
     @classmethod
     def example(cls) -> CroppedModel:
-        """A 300 x 400 crop at row/col (100, 200) of a 1000 x 1200 pushbroom scene."""
-        from geoblock.testing.synthetic import ConstantVelocityPushbroom
+        """A 300 x 400 crop at row/col (100, 200) of a 1000 x 1200 pushbroom scene
+        (``LinescanModel.example``)."""
+        from geoblock.models.linescan import LinescanModel
 
-        return cls(ConstantVelocityPushbroom.example((1000, 1200), roll=0.01), (100.0, 200.0),
-                   (300, 400))
+        return cls(LinescanModel.example((1000, 1200), roll=0.01), (100.0, 200.0), (300, 400))
 
     # ------------------------------------------------------------------ state
     @property
@@ -169,7 +167,7 @@ class CroppedModel(SensorModelBase):
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
         from geoblock.errors import SerializationError
-        from geoblock.models.registry import from_dict
+        from geoblock.plugins import from_dict
 
         for key in ("offset", "shape", "base"):
             if key not in data:
@@ -183,11 +181,13 @@ class CroppedModel(SensorModelBase):
     # One path: SensorModelBase's public directions (broadcasting, NaN isolation, statuses,
     # chunking) call these kernels, which shift and hand the flat finite points to the
     # wrapped model's *_with_status (its statuses, its own chunking).
-    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: Float64Array, lat: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         (row, col), status = self._model.project_with_status(lon, lat, h)
         return row - self._offset[0], col - self._offset[1], status
 
-    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: Float64Array, col: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         (lon, lat, _), status = self._model.backproject_with_status(
             row + self._offset[0], col + self._offset[1], h)
         return lon, lat, status

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import DTypeLike, NDArray
 
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.typing import ArrayLike, Float64Array
@@ -14,13 +15,13 @@ from geoblock.typing import ArrayLike, Float64Array
 __all__ = ["ParameterSet", "accuracy_or_stored", "location_accuracy"]
 
 
-def _frozen(a: ArrayLike, dtype=np.float64) -> np.ndarray:
+def _frozen(a: ArrayLike, dtype: DTypeLike = np.float64) -> NDArray[Any]:
     out = np.array(a, dtype=dtype)
     out.flags.writeable = False
     return out
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False, repr=False)
 class ParameterSet:
     """Names, units, values and a-priori accuracy of a model's parameters.
 
@@ -49,25 +50,34 @@ class ParameterSet:
 
     names: tuple[str, ...]
     values: Float64Array
-    units: tuple[str, ...] = ()
-    sigmas: Float64Array = field(default=None)  # type: ignore[assignment]
-    adjustable: np.ndarray = field(default=None)  # type: ignore[assignment]
-    covariance: Float64Array | None = None
+    units: tuple[str, ...]
+    sigmas: Float64Array
+    adjustable: NDArray[np.bool_]
+    covariance: Float64Array | None
 
-    def __post_init__(self) -> None:
-        names = tuple(str(n) for n in self.names)
+    def __init__(
+        self,
+        names: Sequence[str],
+        values: ArrayLike,
+        units: Sequence[str] = (),
+        sigmas: ArrayLike | None = None,
+        adjustable: ArrayLike | None = None,
+        covariance: ArrayLike | None = None,
+    ) -> None:
+        names = tuple(str(n) for n in names)
         p = len(names)
         if len(set(names)) != p:
             dup = sorted({n for n in names if names.count(n) > 1})
             raise ValueError(f"ParameterSet: duplicate parameter names {dup}")
-        values = _frozen(self.values)
-        if values.shape != (p,):
-            raise ValueError(f"ParameterSet: {p} names but values of shape {values.shape}")
-        units = tuple(self.units) if self.units else ("1",) * p
+        values_ = _frozen(values)
+        if values_.shape != (p,):
+            raise ValueError(f"ParameterSet: {p} names but values of shape {values_.shape}")
+        units = tuple(units) if units else ("1",) * p
         if len(units) != p:
             raise ValueError(f"ParameterSet: {p} names but {len(units)} units")
-        if self.covariance is not None:
-            cov = _frozen(self.covariance)
+        cov: Float64Array | None
+        if covariance is not None:
+            cov = _frozen(covariance)
             if cov.shape != (p, p):
                 raise ValueError(f"ParameterSet: covariance must be ({p}, {p}), got {cov.shape}")
             if not np.allclose(cov, cov.T, rtol=1e-12, atol=0.0):
@@ -76,23 +86,22 @@ class ParameterSet:
         else:
             cov = None
             sig_default = np.full(p, np.inf)
-        sigmas = _frozen(sig_default if self.sigmas is None else self.sigmas)
-        if sigmas.shape != (p,):
-            raise ValueError(f"ParameterSet: {p} names but sigmas of shape {sigmas.shape}")
-        if np.any(np.isnan(sigmas)) or np.any(sigmas <= 0):
-            bad = [n for n, s in zip(names, sigmas, strict=True) if not s > 0]
+        sigmas_ = _frozen(sig_default if sigmas is None else sigmas)
+        if sigmas_.shape != (p,):
+            raise ValueError(f"ParameterSet: {p} names but sigmas of shape {sigmas_.shape}")
+        if np.any(np.isnan(sigmas_)) or np.any(sigmas_ <= 0):
+            bad = [n for n, s in zip(names, sigmas_, strict=True) if not s > 0]
             raise ValueError(f"ParameterSet: sigmas must be > 0 (inf for free); bad: {bad}")
-        adjustable = _frozen(
-            np.ones(p, bool) if self.adjustable is None else self.adjustable, dtype=bool
-        )
-        if adjustable.shape != (p,):
-            raise ValueError(f"ParameterSet: {p} names but adjustable of shape {adjustable.shape}")
+        adjustable_ = _frozen(np.ones(p, bool) if adjustable is None else adjustable, dtype=bool)
+        if adjustable_.shape != (p,):
+            raise ValueError(
+                f"ParameterSet: {p} names but adjustable of shape {adjustable_.shape}")
         for name, value in (
             ("names", names),
-            ("values", values),
+            ("values", values_),
             ("units", units),
-            ("sigmas", sigmas),
-            ("adjustable", adjustable),
+            ("sigmas", sigmas_),
+            ("adjustable", adjustable_),
             ("covariance", cov),
         ):
             object.__setattr__(self, name, value)

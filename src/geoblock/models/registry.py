@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import re
 import warnings
 from collections.abc import Iterator, Mapping
@@ -20,7 +19,7 @@ from geoblock.errors import (
 )
 from geoblock.models.protocol import SensorModel
 
-__all__ = ["ModelRegistry", "build_registry", "from_dict", "get_registry"]
+__all__ = ["ModelRegistry", "build_registry"]
 
 _NAME = re.compile(r"^[a-z][a-z0-9-]*$")
 _REQUIRED = (
@@ -64,10 +63,10 @@ class ModelRegistry:
     """
 
     def __init__(self) -> None:
-        self._classes: dict[str, type] = {}
+        self._classes: dict[str, type[SensorModel]] = {}
         self._owners: dict[str, str] = {}
 
-    def register(self, cls: type, *, plugin: str = "<direct>") -> None:
+    def register(self, cls: type[SensorModel], *, plugin: str = "<direct>") -> None:
         """Add a model class under ``cls.name``.
 
         Raises
@@ -91,7 +90,7 @@ class ModelRegistry:
         self._classes[name] = cls
         self._owners[name] = plugin
 
-    def get(self, name: str) -> type:
+    def get(self, name: str) -> type[SensorModel]:
         """The class registered as ``name``; :class:`UnknownModelError` lists the known ones."""
         try:
             return self._classes[name]
@@ -166,7 +165,7 @@ def build_registry(pm: pluggy.PluginManager) -> ModelRegistry:
     """
     registry = ModelRegistry()
     for impl in reversed(pm.hook.geoblock_register_sensor_models.get_hookimpls()):
-        staged: list[type] = []
+        staged: list[type[SensorModel]] = []
         try:
             kwargs = {"register": staged.append}
             impl.function(*[kwargs[a] for a in impl.argnames])
@@ -189,14 +188,11 @@ def build_registry(pm: pluggy.PluginManager) -> ModelRegistry:
     return registry
 
 
-@functools.lru_cache(maxsize=1)
-def get_registry() -> ModelRegistry:
-    """The registry of the process-wide plugin manager (cached; see ``refresh_plugins``)."""
-    from geoblock.plugins import get_plugin_manager
+def __getattr__(name: str) -> Any:
+    """``get_registry`` and ``from_dict`` live with the process-wide plugin manager
+    (:mod:`geoblock.plugins`) since 0.2; they stay importable from here."""
+    if name in ("get_registry", "from_dict"):
+        from geoblock import plugins
 
-    return build_registry(get_plugin_manager())
-
-
-def from_dict(data: Mapping[str, Any]) -> SensorModel:
-    """Rebuild any registered sensor model from its ``to_dict()`` output (see ModelRegistry)."""
-    return get_registry().from_dict(data)
+        return getattr(plugins, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,9 +1,10 @@
 """``orthorectify``: a lazy, dask-chunked orthoimage as an ``xarray.DataArray``.
 
 The graph has one task per output chunk and no dependencies between tasks. A task receives
-only picklable values - the image (an :class:`~geoblock.io.images.ImageSource`, by path), the
-model (pickled through ``to_dict``), the DEM (by path or value), the **full** output grid and
-the chunk's window - and:
+only picklable values - the image (an :class:`~geoblock.io.images.ImageSource`, by path, or
+an :class:`~geoblock.io.images.ArrayImage` with its pixels), the model (pickled through
+``to_dict``), the DEM (by path or value), the **full** output grid and the chunk's window -
+and:
 
 1. computes the source coordinates of its pixels (:func:`~geoblock.ortho.lattice.
    source_coordinates`, the lattice anchored to the full grid, so values do not depend on the
@@ -19,13 +20,24 @@ Keys are ``ortho-<tokenize(inputs)>``: the same inputs give the same graph.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from geoblock._array import finite_bounds
+from geoblock.dem.intersect import as_dem_source
 from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample_cast
 from geoblock.ortho.lattice import BLOCK_PX, source_coordinates
+from geoblock.pixels import pixel_centres
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from geoblock.dem.protocol import DemSource
+    from geoblock.io.dem import EngineDem
+    from geoblock.io.images import ImageLike, OpenedImage
+    from geoblock.models.protocol import SensorModel
+    from geoblock.ortho.grid import OutputGrid
 
 __all__ = ["ortho_chunk", "orthorectify"]
 
@@ -37,10 +49,10 @@ def _default_fill(dtype: np.dtype, source_nodata: float | None) -> float:
 
 
 def ortho_chunk(
-    image: Any,
-    model: Any,
-    dem: Any,
-    grid: Any,
+    image: OpenedImage,
+    model: SensorModel,
+    dem: DemSource,
+    grid: OutputGrid,
     window: tuple[int, int, int, int],
     kernel: str,
     tolerance_px: float,
@@ -51,7 +63,7 @@ def ortho_chunk(
 
     Parameters
     ----------
-    image : ImageSource
+    image : ImageSource or ArrayImage
         The source image (read inside the task, only the window needed).
     model : SensorModel
     dem : DemSource
@@ -100,13 +112,11 @@ def ortho_chunk(
     return out
 
 
-def _coords(grid: Any, bands: int, fill: Any) -> dict:
+def _coords(grid: OutputGrid, bands: int, fill: Any) -> dict[str, Any]:
     import xarray as xr
 
-    rows, cols = grid.shape
     t = grid.transform
-    x = t.c + t.a * (np.arange(cols) + 0.5)
-    y = t.f + t.e * (np.arange(rows) + 0.5)
+    x, y = pixel_centres(t, grid.shape)
     wkt = grid.crs.to_wkt() if hasattr(grid.crs, "to_wkt") else str(grid.crs)
     gt = " ".join(repr(float(v)) for v in (t.c, t.a, t.b, t.f, t.d, t.e))
     spatial_ref = xr.DataArray(0, attrs={"crs_wkt": wkt, "spatial_ref": wkt, "GeoTransform": gt})
@@ -114,10 +124,10 @@ def _coords(grid: Any, bands: int, fill: Any) -> dict:
 
 
 def orthorectify(
-    image: Any,
-    model: Any,
-    dem: Any,
-    grid: Any = None,
+    image: ImageLike,
+    model: SensorModel,
+    dem: EngineDem,
+    grid: OutputGrid | None = None,
     *,
     kernel: str = "bilinear",
     tolerance_px: float = 0.01,
@@ -126,7 +136,7 @@ def orthorectify(
     block_px: int = BLOCK_PX,
     crop_offset: tuple[float, float] | None = None,
     crop: bool = True,
-) -> Any:
+) -> xr.DataArray:
     """Orthorectify an image: a lazy ``(band, y, x)`` DataArray on an output grid.
 
     Building the result computes nothing (the default grid aside, which projects the scene
@@ -135,12 +145,17 @@ def orthorectify(
 
     Parameters
     ----------
-    image : str, os.PathLike or ImageSource
-        The source image, any raster rasterio reads; bands, dtype and nodata are kept.
+    image : str, os.PathLike, ImageSource, rasterio dataset, xarray.DataArray or ndarray
+        The source image: any raster file rasterio reads, or pixels in memory (an open
+        rasterio dataset, a ``(band, y, x)`` DataArray, a ``(bands, R, C)`` or ``(R, C)``
+        numpy array in the sensor's geometry; :func:`geoblock.io.open_image` says how each
+        is taken, and takes a nodata value for arrays). Bands, dtype and nodata are kept; the
+        result is the same, value for value, whichever form the pixels come in.
     model : SensorModel
         The image's sensor model (ground -> image through ``project_with_status``).
-    dem : DemSource
-        Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`).
+    dem : DemSource, float, or anything geoblock.open_dem opens
+        Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`); a number is a
+        constant height, a path or opened raster is opened with ``open_dem``'s defaults.
     grid : OutputGrid, optional
         Default :meth:`OutputGrid.for_model(model, dem) <geoblock.ortho.grid.OutputGrid.for_model>`
         (UTM zone, GSD rounded to a nice number, footprint, aligned, checked).
@@ -170,6 +185,15 @@ def orthorectify(
         Dask-backed, of the image's dtype. Coordinates ``band`` (1..n), ``y`` and ``x``
         (pixel centres, CRS units) and ``spatial_ref`` (attributes ``crs_wkt`` and
         ``GeoTransform``, as rioxarray reads them); ``attrs["_FillValue"]`` is ``nodata``.
+
+    Raises
+    ------
+    InputTypeError
+        ``image`` or ``dem`` is of a kind geoblock cannot read (the message names it).
+    GeoblockIOError, DemError
+        The image or the DEM cannot be opened.
+    CropError
+        The image and the model do not fit (shapes, crop offset).
     """
     import dask.array as da
     import xarray as xr
@@ -186,6 +210,7 @@ def orthorectify(
     if not tolerance_px >= 0:
         raise ValueError(f"orthorectify: tolerance_px must be >= 0, got {tolerance_px}")
     src = open_image(image)
+    dem = as_dem_source(dem)
     # a crop of a scene (pixel-unit geotransform) addresses the scene model at its offset; an
     # image whose shape differs from the model's with no crop information is refused
     model = model_for_image(model, src, crop_offset=crop_offset, crop=crop)
@@ -198,7 +223,7 @@ def orthorectify(
     col_chunks = tuple(dict.fromkeys((w[1].start, w[1].stop) for w in windows))
     name = "ortho-" + tokenize(src, model, dem, grid, kernel, float(tolerance_px), fill,
                                int(block_px), row_chunks, col_chunks)
-    dsk = {}
+    dsk: dict[Any, Any] = {}
     for i, (ra, rb) in enumerate(row_chunks):
         for j, (ca, cb) in enumerate(col_chunks):
             dsk[(name, 0, i, j)] = (ortho_chunk, src, model, dem, grid, (ra, rb, ca, cb), kernel,

@@ -43,17 +43,23 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
 from affine import Affine
 
 from geoblock import coords
-from geoblock._affine import apply
 from geoblock.errors import GridError
+from geoblock.pixels import corner_to_centre, image_domain, pixel_to_map
+from geoblock.typing import ArrayLike, GroundCoords
 
-__all__ = ["MAX_PIXELS", "OutputGrid", "nice_resolution"]
+if TYPE_CHECKING:
+    from geoblock.dem.protocol import DemSource
+    from geoblock.io.dem import EngineDem
+    from geoblock.models.protocol import SensorModel
+
+__all__ = ["MAX_PIXELS", "OutputGrid", "image_outline", "nice_resolution"]
 
 _TAP_EPS = 1e-8  # gdalwarp's tolerance when snapping -tap bounds
 
@@ -230,13 +236,14 @@ class OutputGrid:
             ymax = math.ceil(ymax / yres - _TAP_EPS) * yres
         cols = max(1, _round_half_away((xmax - xmin) / xres))
         rows = max(1, _round_half_away(abs(ymax - ymin) / yres))
-        return cls(crs, Affine(xres, 0.0, xmin, 0.0, -yres, ymax), (rows, cols))
+        return cls(_crs(crs, "OutputGrid"), Affine(xres, 0.0, xmin, 0.0, -yres, ymax),
+                   (rows, cols))
 
     @classmethod
     def for_model(
         cls,
-        model: Any,
-        dem: Any,
+        model: SensorModel,
+        dem: EngineDem,
         *,
         crs: pyproj.CRS | str | int | None = None,
         resolution: float | tuple[float, float] | None = None,
@@ -250,7 +257,7 @@ class OutputGrid:
         ----------
         model : SensorModel
             Only ``shape``, ``height_range``, ``backproject`` and ``footprint`` are used.
-        dem : DemSource or float
+        dem : DemSource, float, or anything geoblock.open_dem opens
             Terrain heights above the ellipsoid (a number means a constant DEM).
         crs : pyproj.CRS or str or int, optional
             Default: :func:`geoblock.coords.utm_crs` of the footprint.
@@ -284,10 +291,9 @@ class OutputGrid:
             The grid is impossible (:meth:`check`), or the CRS, resolution or bounds are
             invalid.
         """
-        from geoblock.dem import ConstantDem, localize
+        from geoblock.dem.intersect import as_dem_source, localize
 
-        if isinstance(dem, (int, float)):
-            dem = ConstantDem(float(dem))
+        dem = as_dem_source(dem)
         rows, cols = model.shape
         rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
         centre, _ = localize(model, rc, cc, dem, warn=False)
@@ -399,7 +405,7 @@ class OutputGrid:
         """Number of rows."""
         return self.shape[0]
 
-    def xy(self, rows: Any, cols: Any) -> tuple[np.ndarray, np.ndarray]:
+    def xy(self, rows: ArrayLike, cols: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Map coordinates of pixel centres.
 
         Parameters
@@ -415,9 +421,9 @@ class OutputGrid:
         r, c = np.broadcast_arrays(
             np.asarray(rows, dtype=np.float64), np.asarray(cols, dtype=np.float64)
         )
-        return apply(self.transform, c + 0.5, r + 0.5)
+        return pixel_to_map(self.transform, r, c)
 
-    def rowcol(self, x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    def rowcol(self, x: ArrayLike, y: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pixel coordinates (float, integers at centres) of map points; inverse of :meth:`xy`.
 
         Parameters
@@ -431,9 +437,9 @@ class OutputGrid:
         """
         t = self.transform
         x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-        return (y - t.f) / t.e - 0.5, (x - t.c) / t.a - 0.5
+        return corner_to_centre((y - t.f) / t.e, (x - t.c) / t.a)
 
-    def lonlat(self, rows: Any, cols: Any) -> tuple[np.ndarray, np.ndarray]:
+    def lonlat(self, rows: ArrayLike, cols: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """WGS84 longitude and latitude (degrees) of pixel centres, (*S,) each."""
         x, y = self.xy(rows, cols)
         lon, lat = coords.transformer(self.crs, "EPSG:4326").transform(x, y)
@@ -515,7 +521,7 @@ class OutputGrid:
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return self._key() == other._key()  # type: ignore[attr-defined]
+        return self._key() == other._key()
 
     def __hash__(self) -> int:
         return hash(self._key())
@@ -537,7 +543,9 @@ class OutputGrid:
         )
 
 
-def _scene_outline(model: Any, dem: Any, h_centre: float) -> tuple[np.ndarray, np.ndarray]:
+def _scene_outline(
+    model: SensorModel, dem: DemSource, h_centre: float
+) -> tuple[np.ndarray, np.ndarray]:
     """``(lon, lat)`` of the image outline at the DEM's min and max heights over the scene.
 
     The DEM height range is looked up over the outline's lon/lat box; as the box itself depends
@@ -558,9 +566,21 @@ def _scene_outline(model: Any, dem: Any, h_centre: float) -> tuple[np.ndarray, n
     return lon, lat
 
 
-def _outline_at(model: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+def image_outline(model: SensorModel, h: float, n: int = 32) -> GroundCoords:
+    """The image outline backprojected at height ``h``: ``4 n`` points along the pixel
+    *edges* (:func:`geoblock.pixels.image_domain`), clockwise in image space from the top-left
+    corner, not closed (what :meth:`SensorModelBase.footprint
+    <geoblock.models.SensorModelBase.footprint>` gives, for any model of the protocol)."""
+    r0, c0, r1, c1 = image_domain(model.shape)
+    t = np.linspace(0.0, 1.0, n, endpoint=False)
+    row = np.concatenate([np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t])
+    col = np.concatenate([c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t, np.full(n, c0)])
+    return model.backproject(row, col, np.full(row.shape, float(h)))
+
+
+def _outline_at(model: SensorModel, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
     """Finite ``(lon, lat)`` of the image outline (pixel edges) at heights ``lo`` and ``hi``."""
-    pts = [model.footprint(h, n=32) for h in sorted({lo, hi})]
+    pts = [image_outline(model, h, n=32) for h in sorted({lo, hi})]
     lon = np.concatenate([p.lon for p in pts])
     lat = np.concatenate([p.lat for p in pts])
     ok = np.isfinite(lon) & np.isfinite(lat)
@@ -569,7 +589,7 @@ def _outline_at(model: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarra
     return lon[ok], lat[ok]
 
 
-def _gsd(model: Any, rc: float, cc: float, h: float, crs: pyproj.CRS) -> float:
+def _gsd(model: SensorModel, rc: float, cc: float, h: float, crs: pyproj.CRS) -> float:
     """Ground sample distance (CRS units) at image point ``(rc, cc)`` on height ``h``."""
     r = np.array([rc, rc, rc - 0.5, rc + 0.5])
     c = np.array([cc - 0.5, cc + 0.5, cc, cc])

@@ -4,7 +4,8 @@ Coordinates follow geoblock's convention: ``(row, col)`` with integers at pixel 
 ``(0, 0)`` the centre of ``src[:, 0, 0]`` (GDAL's pixel/line minus 0.5). Kernels:
 
 ``nearest``
-    The pixel containing the point: ``src[:, floor(row + 0.5), floor(col + 0.5)]``.
+    The pixel containing the point: ``src[:, floor(row + PIXEL_CENTRE), floor(col +
+    PIXEL_CENTRE)]`` (:data:`geoblock.pixels.PIXEL_CENTRE` = 0.5).
 ``bilinear``
     The 2 x 2 surrounding centres, weights ``(1 - t, t)`` per axis (GDAL's warper
     ``bilinear``).
@@ -34,9 +35,9 @@ points near the raster edge the same way); geoblock prefers no value to a value 
 of a kernel. The orthorectifier reads source windows padded by :data:`KERNEL_RADIUS`, so
 inside an image only nodata makes a point invalid.
 
-The work is done by a numba kernel (one pass per point, no temporaries) when numba is
-importable, else by the vectorised numpy reference :func:`_resample_numpy`; the two agree to
-floating-point rounding (tested).
+The work is done by numba kernels (one pass per point, no temporaries). The vectorised numpy
+reference :func:`geoblock.ortho._reference.resample_reference` defines the same values (the
+tests hold the kernels to it, to floating-point rounding).
 """
 
 from __future__ import annotations
@@ -44,14 +45,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numba
 import numpy as np
 
-from geoblock.dem.sampling import _keys
-
-try:  # numba is optional: the numpy reference is used without it
-    import numba
-except ImportError:  # pragma: no cover - exercised only without numba
-    numba = None
+from geoblock.pixels import PIXEL_CENTRE
+from geoblock.typing import ArrayLike
 
 __all__ = ["KERNELS", "KERNEL_RADIUS", "SINC_HALF_WIDTH", "cast", "resample", "resample_cast"]
 
@@ -108,15 +106,12 @@ def resample(
     """
     src, row, col, shape, mask = _prepare(src, row, col, kernel, nodata)
     bands = src.shape[0]
-    if _nb_resample is not None:
-        values = np.empty((bands, row.size), dtype=np.float64)
-        valid = np.empty(row.size, dtype=np.bool_)
-        use_mask = mask is not None
-        if not use_mask:
-            mask = np.zeros((0, 0), dtype=np.bool_)
-        _nb_resample(src, mask, use_mask, row, col, _KIND[kernel], values, valid)
-    else:  # pragma: no cover - without numba
-        values, valid = _resample_numpy(src, row, col, kernel, mask)
+    values = np.empty((bands, row.size), dtype=np.float64)
+    valid = np.empty(row.size, dtype=np.bool_)
+    use_mask = mask is not None
+    if mask is None:
+        mask = np.zeros((0, 0), dtype=np.bool_)
+    _nb_resample(src, mask, use_mask, row, col, _KIND[kernel], values, valid)
     return values.reshape((bands,) + shape), valid.reshape(shape)
 
 
@@ -187,7 +182,7 @@ def resample_cast(
     valid : ndarray, (*S,) bool
     """
     dtype = np.dtype(dtype)
-    if _nb_resample is None or dtype not in _FUSED_DTYPES:
+    if dtype not in _FUSED_DTYPES:
         values, valid = resample(src, row, col, kernel, nodata=nodata)
         return cast(values, valid, dtype, fill), valid
     src, row, col, shape, mask = _prepare(src, row, col, kernel, nodata)
@@ -205,7 +200,7 @@ def resample_cast(
     out = np.empty((bands, row.size), dtype=dtype)
     valid = np.empty(row.size, dtype=np.bool_)
     use_mask = mask is not None
-    if not use_mask:
+    if mask is None:
         mask = np.zeros((0, 0), dtype=np.bool_)
     _nb_resample(src, mask, use_mask, row, col, _KIND[kernel], out, valid, is_int, lo, hi,
                  fill_value)
@@ -213,7 +208,9 @@ def resample_cast(
 
 
 # ---------------------------------------------------------------------- helpers
-def _prepare(src, row, col, kernel, nodata):
+def _prepare(
+    src: ArrayLike, row: ArrayLike, col: ArrayLike, kernel: str, nodata: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, ...], np.ndarray | None]:
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     src = np.asarray(src)
@@ -240,259 +237,193 @@ def _prepare(src, row, col, kernel, nodata):
     return src, row, col, shape, mask
 
 
-def _axis(x: np.ndarray, kernel: str) -> tuple[np.ndarray, np.ndarray]:
-    """First tap index (M,) intp and weights (M, n) of each finite coordinate ``x`` (M,)."""
-    n, first = _TAPS[kernel]
-    if kernel == "nearest":
-        return np.floor(x + 0.5).astype(np.intp), np.ones((x.size, 1))
-    base = np.floor(x)
-    t = x - base
-    if kernel == "bilinear":
-        w = np.stack([1.0 - t, t], axis=-1)
-    elif kernel == "bicubic":
-        w = _keys(t)
-    else:
-        d = t[:, None] - np.arange(first, first + n)[None, :]  # point minus tap, (M, 16)
-        w = np.where(np.abs(d) < SINC_HALF_WIDTH, np.sinc(d) * np.sinc(d / SINC_HALF_WIDTH), 0.0)
-        w = w / w.sum(axis=-1, keepdims=True)
-        w[t == 0.0] = (np.arange(first, first + n) == 0).astype(np.float64)  # exactly a delta
-    return base.astype(np.intp) + first, w
-
-
-def _resample_numpy(
-    src: np.ndarray,
-    row: np.ndarray,
-    col: np.ndarray,
-    kernel: str,
-    mask: np.ndarray | None = None,
-    block: int = 1 << 14,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised numpy reference of :func:`resample` on flat ``row, col`` (N,).
-
-    ``mask`` (R, C) is True at nodata pixels. Returns ``values`` (bands, N) and ``valid``
-    (N,). Works in blocks of ``block`` points to bound the (bands, M, n, n) tap arrays.
-    """
-    bands, rows, cols = src.shape
-    n_pts = row.size
-    values = np.full((bands, n_pts), np.nan)
-    valid = np.zeros(n_pts, dtype=bool)
-    n = _TAPS[kernel][0]
-    step = max(1, block // (n * n))
-    for s in range(0, n_pts, step):
-        r, c = row[s:s + step], col[s:s + step]
-        ok = np.isfinite(r) & np.isfinite(c)
-        idx = np.flatnonzero(ok) + s
-        if idx.size == 0:
-            continue
-        r0, wr = _axis(r[ok], kernel)
-        c0, wc = _axis(c[ok], kernel)
-        ri = r0[:, None] + np.arange(n)  # (M, n)
-        ci = c0[:, None] + np.arange(n)
-        # taps that matter: non-zero weight in both directions
-        need = (wr != 0)[:, :, None] & (wc != 0)[:, None, :]  # (M, n, n)
-        rin = (ri >= 0) & (ri < rows)
-        cin = (ci >= 0) & (ci < cols)
-        inside = rin[:, :, None] & cin[:, None, :]
-        good = np.all(inside | ~need, axis=(1, 2))
-        rc = np.clip(ri, 0, rows - 1)
-        cc = np.clip(ci, 0, cols - 1)
-        if mask is not None:
-            bad = mask[rc[:, :, None], cc[:, None, :]] & need
-            good &= ~bad.any(axis=(1, 2))
-        taps = src[:, rc[:, :, None], cc[:, None, :]].astype(np.float64)  # (B, M, n, n)
-        taps = np.where(need[None], taps, 0.0)  # an unneeded NaN or edge tap must not leak
-        v = np.einsum("mi,bmij,mj->bm", wr, taps, wc)
-        good &= np.all(np.isfinite(v), axis=0)
-        values[:, idx[good]] = v[:, good]
-        valid[idx[good]] = True
-    return values, valid
-
-
 # ---------------------------------------------------------------------- numba kernel
-if numba is not None:
-    _M = np.arange(-7, 9)
-    _COS_M8 = np.cos(np.pi * _M / SINC_HALF_WIDTH)
-    _SIN_M8 = np.sin(np.pi * _M / SINC_HALF_WIDTH)
+_M = np.arange(-7, 9)
+_COS_M8 = np.cos(np.pi * _M / SINC_HALF_WIDTH)
+_SIN_M8 = np.sin(np.pi * _M / SINC_HALF_WIDTH)
 
-    @numba.njit(nogil=True, cache=True)
-    def _nb_weights(x, kind, w):  # pragma: no cover - compiled
-        """Fill ``w`` with the axis weights of coordinate ``x``; return the first tap index."""
-        if kind == 0:
-            w[0] = 1.0
-            return int(math.floor(x + 0.5))
-        base = math.floor(x)
-        t = x - base
-        i0 = int(base)
-        if kind == 1:
-            w[0] = 1.0 - t
-            w[1] = t
-            return i0
-        if kind == 2:
-            a = -0.5
-            t2 = t * t
-            t3 = t2 * t
-            w[0] = a * t3 - 2 * a * t2 + a * t
-            w[1] = (a + 2) * t3 - (a + 3) * t2 + 1
-            w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t
-            w[3] = -a * t3 + a * t2
-            return i0 - 1
-        # sin(pi d) = (-1)^m sin(pi t) and sin(pi d / 8) by the angle-difference formula,
-        # d = t - m for taps m = -7..8: three trig calls per axis instead of 32
-        if t == 0.0:
-            for k in range(16):
-                w[k] = 0.0
-            w[7] = 1.0
-            return i0 - 7
-        s1 = math.sin(math.pi * t)
-        s8 = math.sin(math.pi * t / 8.0)
-        c8 = math.cos(math.pi * t / 8.0)
-        total = 0.0
+@numba.njit(nogil=True, cache=True)
+def _nb_weights(x: float, kind: int, w: np.ndarray) -> int:  # pragma: no cover - compiled
+    """Fill ``w`` with the axis weights of coordinate ``x``; return the first tap index."""
+    if kind == 0:
+        w[0] = 1.0
+        return int(math.floor(x + PIXEL_CENTRE))  # the pixel holding the point
+    base = math.floor(x)
+    t = x - base
+    i0 = int(base)
+    if kind == 1:
+        w[0] = 1.0 - t
+        w[1] = t
+        return i0
+    if kind == 2:
+        a = -0.5
+        t2 = t * t
+        t3 = t2 * t
+        w[0] = a * t3 - 2 * a * t2 + a * t
+        w[1] = (a + 2) * t3 - (a + 3) * t2 + 1
+        w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t
+        w[3] = -a * t3 + a * t2
+        return i0 - 1
+    # sin(pi d) = (-1)^m sin(pi t) and sin(pi d / 8) by the angle-difference formula,
+    # d = t - m for taps m = -7..8: three trig calls per axis instead of 32
+    if t == 0.0:
         for k in range(16):
-            m = k - 7
-            d = t - m
-            if abs(d) < 8.0:
-                sign = 1.0 if m % 2 == 0 else -1.0
-                num = sign * s1 * (s8 * _COS_M8[k] - c8 * _SIN_M8[k])
-                wk = num * 8.0 / (math.pi * math.pi * d * d)
-            else:
-                wk = 0.0
-            w[k] = wk
-            total += wk
-        for k in range(16):
-            w[k] = w[k] / total
+            w[k] = 0.0
+        w[7] = 1.0
         return i0 - 7
-
-    @numba.njit(nogil=True, cache=True)
-    def _nb_nearest(src, mask, use_mask, row, col, out, valid, is_int, lo, hi,
-                    fill):  # pragma: no cover
-        bands, rows, cols = src.shape
-        for p in range(row.shape[0]):
-            r = row[p]
-            c = col[p]
-            ok = np.isfinite(r) and np.isfinite(c)
-            if ok:
-                ri = int(math.floor(r + 0.5))
-                ci = int(math.floor(c + 0.5))
-                ok = 0 <= ri < rows and 0 <= ci < cols and not (use_mask and mask[ri, ci])
-            if ok:
-                for b in range(bands):
-                    if not np.isfinite(float(src[b, ri, ci])):
-                        ok = False
-                if ok:
-                    for b in range(bands):
-                        out[b, p] = _store(float(src[b, ri, ci]), is_int, lo, hi)
-            if not ok:
-                for b in range(bands):
-                    out[b, p] = fill
-            valid[p] = ok
-
-    @numba.njit(nogil=True, cache=True)
-    def _nb_bilinear(src, mask, use_mask, row, col, out, valid, is_int, lo, hi,
-                     fill):  # pragma: no cover
-        bands, rows, cols = src.shape
-        for p in range(row.shape[0]):
-            r = row[p]
-            c = col[p]
-            ok = np.isfinite(r) and np.isfinite(c)
-            if ok:
-                fr = math.floor(r)
-                fc = math.floor(c)
-                tr = r - fr
-                tc = c - fc
-                r0 = int(fr)
-                c0 = int(fc)
-                r1 = r0 + 1 if tr != 0.0 else r0  # a zero-weight tap is not needed
-                c1 = c0 + 1 if tc != 0.0 else c0
-                ok = r0 >= 0 and r1 < rows and c0 >= 0 and c1 < cols
-                if ok and use_mask:
-                    ok = not (mask[r0, c0] or mask[r0, c1] or mask[r1, c0] or mask[r1, c1])
-            if ok:
-                for b in range(bands):
-                    top = (1.0 - tc) * src[b, r0, c0] + tc * src[b, r0, c1]
-                    bot = (1.0 - tc) * src[b, r1, c0] + tc * src[b, r1, c1]
-                    v = (1.0 - tr) * top + tr * bot
-                    if not np.isfinite(v):
-                        ok = False
-                        break
-                    out[b, p] = _store(v, is_int, lo, hi)
-            if not ok:
-                for b in range(bands):
-                    out[b, p] = fill
-            valid[p] = ok
-
-    @numba.njit(inline="always")
-    def _store(v, is_int, lo, hi):  # pragma: no cover - compiled
-        """A finite value as :func:`cast` converts it: integers rounded half away from zero
-        and clipped to ``[lo, hi]``; floats as they are (the assignment converts)."""
-        if is_int:
-            r = math.ceil(v - 0.5) if v < 0 else math.floor(v + 0.5)
-            return min(max(r, lo), hi)
-        return v
-
-    def _nb_resample(src, mask, use_mask, row, col, kind, out, valid, is_int=False, lo=0.0,
-                     hi=0.0, fill=np.nan):  # pragma: no cover
-        """Dispatch in Python, so that numba compiles only the kernels used (per dtypes).
-
-        ``out`` (bands, N) of float64 (values, NaN where invalid) or of the output dtype
-        (values as :func:`cast` converts them, ``fill`` where invalid)."""
-        args = (out, valid, is_int, float(lo), float(hi), fill)
-        if kind == 0:
-            _nb_nearest(src, mask, use_mask, row, col, *args)
-        elif kind == 1:
-            _nb_bilinear(src, mask, use_mask, row, col, *args)
+    s1 = math.sin(math.pi * t)
+    s8 = math.sin(math.pi * t / 8.0)
+    c8 = math.cos(math.pi * t / 8.0)
+    total = 0.0
+    for k in range(16):
+        m = k - 7
+        d = t - m
+        if abs(d) < 8.0:
+            sign = 1.0 if m % 2 == 0 else -1.0
+            num = sign * s1 * (s8 * _COS_M8[k] - c8 * _SIN_M8[k])
+            wk = num * 8.0 / (math.pi * math.pi * d * d)
         else:
-            _nb_separable(src, mask, use_mask, row, col, kind, 4 if kind == 2 else 16, *args)
+            wk = 0.0
+        w[k] = wk
+        total += wk
+    for k in range(16):
+        w[k] = w[k] / total
+    return i0 - 7
 
-    @numba.njit(nogil=True, cache=True)
-    def _nb_separable(src, mask, use_mask, row, col, kind, n, out, valid, is_int, lo, hi,
-                      fill):  # pragma: no cover
-        """Bicubic and sinc: separable weights; only taps from the first to the last non-zero
-        weight of each axis are read."""
-        bands, rows, cols = src.shape
-        wr = np.empty(16)
-        wc = np.empty(16)
-        for p in range(row.shape[0]):
-            r = row[p]
-            c = col[p]
-            ok = np.isfinite(r) and np.isfinite(c)
-            if ok:
-                r0 = _nb_weights(r, kind, wr)
-                c0 = _nb_weights(c, kind, wc)
-                ilo, ihi = _nb_support(wr, n)
-                jlo, jhi = _nb_support(wc, n)
-                ok = r0 + ilo >= 0 and r0 + ihi < rows and c0 + jlo >= 0 and c0 + jhi < cols
-                if ok and use_mask:
-                    for i in range(ilo, ihi + 1):
-                        for j in range(jlo, jhi + 1):
-                            if mask[r0 + i, c0 + j]:
-                                ok = False
+@numba.njit(nogil=True, cache=True)
+def _nb_nearest(src: np.ndarray, mask: np.ndarray, use_mask: bool, row: np.ndarray,
+                col: np.ndarray, out: np.ndarray, valid: np.ndarray, is_int: bool, lo: float,
+                hi: float, fill: float) -> None:  # pragma: no cover
+    bands, rows, cols = src.shape
+    for p in range(row.shape[0]):
+        r = row[p]
+        c = col[p]
+        ok = np.isfinite(r) and np.isfinite(c)
+        if ok:
+            ri = int(math.floor(r + PIXEL_CENTRE))  # the pixel holding the point
+            ci = int(math.floor(c + PIXEL_CENTRE))
+            ok = 0 <= ri < rows and 0 <= ci < cols and not (use_mask and mask[ri, ci])
+        if ok:
+            for b in range(bands):
+                if not np.isfinite(float(src[b, ri, ci])):
+                    ok = False
             if ok:
                 for b in range(bands):
-                    acc = 0.0
-                    for i in range(ilo, ihi + 1):
-                        line = 0.0
-                        for j in range(jlo, jhi + 1):
-                            line += wc[j] * src[b, r0 + i, c0 + j]
-                        acc += wr[i] * line
-                    if not np.isfinite(acc):
-                        ok = False
-                        break
-                    out[b, p] = _store(acc, is_int, lo, hi)
-            if not ok:
-                for b in range(bands):
-                    out[b, p] = fill
-            valid[p] = ok
+                    out[b, p] = _store(float(src[b, ri, ci]), is_int, lo, hi)
+        if not ok:
+            for b in range(bands):
+                out[b, p] = fill
+        valid[p] = ok
 
-    @numba.njit(nogil=True, cache=True)
-    def _nb_support(w, n):  # pragma: no cover
-        """First and last index of a non-zero weight in ``w[:n]``."""
-        lo = 0
-        while lo < n - 1 and w[lo] == 0.0:
-            lo += 1
-        hi = n - 1
-        while hi > lo and w[hi] == 0.0:
-            hi -= 1
-        return lo, hi
+@numba.njit(nogil=True, cache=True)
+def _nb_bilinear(src: np.ndarray, mask: np.ndarray, use_mask: bool, row: np.ndarray,
+                 col: np.ndarray, out: np.ndarray, valid: np.ndarray, is_int: bool, lo: float,
+                 hi: float, fill: float) -> None:  # pragma: no cover
+    bands, rows, cols = src.shape
+    for p in range(row.shape[0]):
+        r = row[p]
+        c = col[p]
+        ok = np.isfinite(r) and np.isfinite(c)
+        if ok:
+            fr = math.floor(r)
+            fc = math.floor(c)
+            tr = r - fr
+            tc = c - fc
+            r0 = int(fr)
+            c0 = int(fc)
+            r1 = r0 + 1 if tr != 0.0 else r0  # a zero-weight tap is not needed
+            c1 = c0 + 1 if tc != 0.0 else c0
+            ok = r0 >= 0 and r1 < rows and c0 >= 0 and c1 < cols
+            if ok and use_mask:
+                ok = not (mask[r0, c0] or mask[r0, c1] or mask[r1, c0] or mask[r1, c1])
+        if ok:
+            for b in range(bands):
+                top = (1.0 - tc) * src[b, r0, c0] + tc * src[b, r0, c1]
+                bot = (1.0 - tc) * src[b, r1, c0] + tc * src[b, r1, c1]
+                v = (1.0 - tr) * top + tr * bot
+                if not np.isfinite(v):
+                    ok = False
+                    break
+                out[b, p] = _store(v, is_int, lo, hi)
+        if not ok:
+            for b in range(bands):
+                out[b, p] = fill
+        valid[p] = ok
 
-else:  # pragma: no cover
-    _nb_resample = None
+@numba.njit(inline="always")
+def _store(v: float, is_int: bool, lo: float, hi: float) -> float:  # pragma: no cover
+    """A finite value as :func:`cast` converts it: integers rounded half away from zero
+    and clipped to ``[lo, hi]``; floats as they are (the assignment converts)."""
+    if is_int:
+        r = math.ceil(v - 0.5) if v < 0 else math.floor(v + 0.5)
+        return min(max(r, lo), hi)
+    return v
+
+def _nb_resample(src: np.ndarray, mask: np.ndarray, use_mask: bool, row: np.ndarray,
+                 col: np.ndarray, kind: int, out: np.ndarray, valid: np.ndarray,
+                 is_int: bool = False, lo: float = 0.0, hi: float = 0.0,
+                 fill: float = np.nan) -> None:  # pragma: no cover
+    """Dispatch in Python, so that numba compiles only the kernels used (per dtypes).
+
+    ``out`` (bands, N) of float64 (values, NaN where invalid) or of the output dtype
+    (values as :func:`cast` converts them, ``fill`` where invalid)."""
+    args = (out, valid, is_int, float(lo), float(hi), fill)
+    if kind == 0:
+        _nb_nearest(src, mask, use_mask, row, col, *args)
+    elif kind == 1:
+        _nb_bilinear(src, mask, use_mask, row, col, *args)
+    else:
+        _nb_separable(src, mask, use_mask, row, col, kind, 4 if kind == 2 else 16, *args)
+
+@numba.njit(nogil=True, cache=True)
+def _nb_separable(src: np.ndarray, mask: np.ndarray, use_mask: bool, row: np.ndarray,
+                  col: np.ndarray, kind: int, n: int, out: np.ndarray, valid: np.ndarray,
+                  is_int: bool, lo: float, hi: float, fill: float) -> None:  # pragma: no cover
+    """Bicubic and sinc: separable weights; only taps from the first to the last non-zero
+    weight of each axis are read."""
+    bands, rows, cols = src.shape
+    wr = np.empty(16)
+    wc = np.empty(16)
+    for p in range(row.shape[0]):
+        r = row[p]
+        c = col[p]
+        ok = np.isfinite(r) and np.isfinite(c)
+        if ok:
+            r0 = _nb_weights(r, kind, wr)
+            c0 = _nb_weights(c, kind, wc)
+            ilo, ihi = _nb_support(wr, n)
+            jlo, jhi = _nb_support(wc, n)
+            ok = r0 + ilo >= 0 and r0 + ihi < rows and c0 + jlo >= 0 and c0 + jhi < cols
+            if ok and use_mask:
+                for i in range(ilo, ihi + 1):
+                    for j in range(jlo, jhi + 1):
+                        if mask[r0 + i, c0 + j]:
+                            ok = False
+        if ok:
+            for b in range(bands):
+                acc = 0.0
+                for i in range(ilo, ihi + 1):
+                    line = 0.0
+                    for j in range(jlo, jhi + 1):
+                        line += wc[j] * src[b, r0 + i, c0 + j]
+                    acc += wr[i] * line
+                if not np.isfinite(acc):
+                    ok = False
+                    break
+                out[b, p] = _store(acc, is_int, lo, hi)
+        if not ok:
+            for b in range(bands):
+                out[b, p] = fill
+        valid[p] = ok
+
+@numba.njit(nogil=True, cache=True)
+def _nb_support(w: np.ndarray, n: int) -> tuple[int, int]:  # pragma: no cover
+    """First and last index of a non-zero weight in ``w[:n]``."""
+    lo = 0
+    while lo < n - 1 and w[lo] == 0.0:
+        lo += 1
+    hi = n - 1
+    while hi > lo and w[hi] == 0.0:
+        hi -= 1
+    return lo, hi
+

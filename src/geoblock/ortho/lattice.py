@@ -36,13 +36,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
 from geoblock import coords
-from geoblock._affine import apply as affine_apply
+from geoblock.pixels import PIXEL_CENTRE, pixel_to_map
+from geoblock.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from affine import Affine
+    from pyproj import CRS
+
+    from geoblock.dem.protocol import DemSource
+    from geoblock.models.protocol import SensorModel
+    from geoblock.ortho.grid import OutputGrid
 
 __all__ = ["LatticeInfo", "source_coordinates"]
 
@@ -79,9 +88,13 @@ class LatticeInfo:
     exact_points: int = 0
 
 
+#: a block's lattice nodes: lon, lat (nr, nc) and image row, col (levels, nr, nc)
+_Nodes = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
 # ---------------------------------------------------------------------- numba kernels
 @numba.njit(inline="always")
-def _cell(p, s, inv, n):  # pragma: no cover - compiled
+def _cell(p: int, s: int, inv: float, n: int) -> tuple[int, float]:  # pragma: no cover
     """Node cell ``k`` and fraction ``t`` of block pixel ``p`` (nodes at multiples of ``s``)."""
     k = p // s
     if k > n - 2:
@@ -90,7 +103,8 @@ def _cell(p, s, inv, n):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _lerp2(nodes, kr, kc, tr, tc):  # pragma: no cover - compiled
+def _lerp2(nodes: np.ndarray, kr: int, kc: int, tr: float,
+           tc: float) -> float:  # pragma: no cover - compiled
     """Bilinear in a cell: along rows first (as the row kernels precompute), then columns."""
     a = nodes[kr, kc] + tr * (nodes[kr + 1, kc] - nodes[kr, kc])
     b = nodes[kr, kc + 1] + tr * (nodes[kr + 1, kc + 1] - nodes[kr, kc + 1])
@@ -98,7 +112,8 @@ def _lerp2(nodes, kr, kc, tr, tc):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _quadratic_weights(hh, h0, dh, pairs):  # pragma: no cover - compiled
+def _quadratic_weights(hh: float, h0: float, dh: float,
+                       pairs: int) -> tuple[int, float, float, float]:  # pragma: no cover
     """First level ``2 k`` and Lagrange weights of height ``hh`` on levels ``h0 + k dh``."""
     u = (hh - h0) / dh
     k = int(math.floor(u * 0.5))
@@ -111,7 +126,9 @@ def _quadratic_weights(hh, h0, dh, pairs):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _image_point(rn, cn, hh, kr, kc, tr, tc, h0, dh, pairs):  # pragma: no cover - compiled
+def _image_point(rn: np.ndarray, cn: np.ndarray, hh: float, kr: int, kc: int, tr: float,
+                 tc: float, h0: float, dh: float,
+                 pairs: int) -> tuple[float, float]:  # pragma: no cover - compiled
     """Image (row, col) at one pixel: bilinear in the nodes, quadratic in ``hh`` between
     levels ``h0 + k dh``; NaN for a NaN height."""
     if not np.isfinite(hh):
@@ -127,7 +144,8 @@ def _image_point(rn, cn, hh, kr, kc, tr, tc, h0, dh, pairs):  # pragma: no cover
 
 
 @numba.njit(inline="always")
-def _row_lerp(nodes, kr, tr, out):  # pragma: no cover - compiled
+def _row_lerp(nodes: np.ndarray, kr: int, tr: float,
+              out: np.ndarray) -> None:  # pragma: no cover - compiled
     """``out[..., kc]``: the nodes of rows ``kr, kr + 1`` interpolated at ``tr`` (the first
     step of :func:`_lerp2`, shared by a whole output row)."""
     for kc in range(nodes.shape[-1]):
@@ -135,7 +153,8 @@ def _row_lerp(nodes, kr, tr, out):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True)
-def _column_cells(c_off, ncols, s, n):  # pragma: no cover - compiled
+def _column_cells(c_off: int, ncols: int, s: int,
+                  n: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
     """:func:`_cell` of block columns ``c_off .. c_off + ncols - 1``: shared by every row."""
     kcs = np.empty(ncols, dtype=np.int64)
     tcs = np.empty(ncols)
@@ -146,7 +165,8 @@ def _column_cells(c_off, ncols, s, n):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True)
-def _bilinear_into(nodes, r_off, c_off, s, out):  # pragma: no cover - compiled
+def _bilinear_into(nodes: np.ndarray, r_off: int, c_off: int, s: int,
+                   out: np.ndarray) -> None:  # pragma: no cover - compiled
     """``out`` (nrows, ncols, any layout): bilinear interpolation of ``nodes`` (nr, nc) at
     block pixels ``r_off + i``, ``c_off + j`` (nodes at multiples of ``s``); bit-identical
     to :func:`_lerp2` per pixel."""
@@ -164,7 +184,8 @@ def _bilinear_into(nodes, r_off, c_off, s, out):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True)
-def _bilinear(nodes, r_off, c_off, nrows, ncols, s):  # pragma: no cover - compiled
+def _bilinear(nodes: np.ndarray, r_off: int, c_off: int, nrows: int, ncols: int,
+              s: int) -> np.ndarray:  # pragma: no cover - compiled
     """:func:`_bilinear_into` a new (nrows, ncols) array."""
     out = np.empty((nrows, ncols))
     _bilinear_into(nodes, r_off, c_off, s, out)
@@ -172,8 +193,9 @@ def _bilinear(nodes, r_off, c_off, nrows, ncols, s):  # pragma: no cover - compi
 
 
 @numba.njit(nogil=True, cache=True)
-def _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row,
-                       col):  # pragma: no cover - compiled
+def _interp_image_into(rn: np.ndarray, cn: np.ndarray, h: np.ndarray, r_off: int, c_off: int,
+                       s: int, h0: float, dh: float, pairs: int, row: np.ndarray,
+                       col: np.ndarray) -> int:  # pragma: no cover - compiled
     """Image ``row, col`` (nrows, ncols, any layout) of block pixels from node values
     ``rn, cn`` (levels, nr, nc): bilinear in the nodes, quadratic in ``h`` between levels
     ``h0 + k dh``; NaN where ``h`` is NaN. Bit-identical to :func:`_image_point` per pixel
@@ -221,7 +243,9 @@ def _interp_image_into(rn, cn, h, r_off, c_off, s, h0, dh, pairs, row,
 
 
 @numba.njit(nogil=True, cache=True)
-def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cover - compiled
+def _interp_image(rn: np.ndarray, cn: np.ndarray, h: np.ndarray, r_off: int, c_off: int,
+                  s: int, h0: float, dh: float,
+                  pairs: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
     """:func:`_interp_image_into` new (nrows, ncols) arrays ``row, col``."""
     row = np.empty(h.shape)
     col = np.empty(h.shape)
@@ -230,7 +254,8 @@ def _interp_image(rn, cn, h, r_off, c_off, s, h0, dh, pairs):  # pragma: no cove
 
 
 @numba.njit(nogil=True, cache=True)
-def _bilinear_points(nodes, pr, pc, s):  # pragma: no cover - compiled
+def _bilinear_points(nodes: np.ndarray, pr: np.ndarray, pc: np.ndarray,
+                     s: int) -> np.ndarray:  # pragma: no cover - compiled
     """:func:`_bilinear` at scattered block pixels ``(pr[k], pc[k])`` (1-D ints)."""
     out = np.empty(pr.size)
     inv = 1.0 / s
@@ -242,7 +267,9 @@ def _bilinear_points(nodes, pr, pc, s):  # pragma: no cover - compiled
 
 
 @numba.njit(nogil=True, cache=True)
-def _interp_image_points(rn, cn, h, pr, pc, s, h0, dh, pairs):  # pragma: no cover - compiled
+def _interp_image_points(rn: np.ndarray, cn: np.ndarray, h: np.ndarray, pr: np.ndarray,
+                         pc: np.ndarray, s: int, h0: float, dh: float,
+                         pairs: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     """:func:`_interp_image` at scattered block pixels ``(pr[k], pc[k])`` with heights
     ``h[k]`` (1-D)."""
     row = np.empty(pr.size)
@@ -256,7 +283,7 @@ def _interp_image_points(rn, cn, h, pr, pc, s, h0, dh, pairs):  # pragma: no cov
 
 
 # ---------------------------------------------------------------------- helpers
-def _grid_parts(grid: Any) -> tuple[Any, Any, tuple[int, int]]:
+def _grid_parts(grid: OutputGrid) -> tuple[CRS, Affine, tuple[int, int]]:
     return grid.crs, grid.transform, (int(grid.shape[0]), int(grid.shape[1]))
 
 
@@ -272,7 +299,8 @@ def _slice_bounds(sl: slice | None, size: int) -> tuple[int, int]:
 class _Context:
     """What every block of one call shares: the model, DEM, grid and transformer."""
 
-    def __init__(self, model, dem, crs, transform, shape, info):
+    def __init__(self, model: SensorModel, dem: DemSource, crs: CRS, transform: Affine,
+                 shape: tuple[int, int], info: LatticeInfo | None) -> None:
         self.model = model
         self.dem = dem
         self.transform = transform
@@ -282,22 +310,22 @@ class _Context:
 
     def lonlat(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact lon/lat (degrees) of global pixel indices (pixel centres)."""
-        x, y = affine_apply(self.transform, np.asarray(cols, float) + 0.5,
-                            np.asarray(rows, float) + 0.5)
+        x, y = pixel_to_map(self.transform, rows, cols)
         lon, lat = self.to_lonlat.transform(x, y)
         return np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
 
-    def project(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
+    def project(self, lon: ArrayLike, lat: ArrayLike,
+                h: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         (row, col), _ = self.model.project_with_status(lon, lat, h)
         if self.info is not None:
             self.info.exact_points += int(np.size(row))
         return np.asarray(row, dtype=np.float64), np.asarray(col, dtype=np.float64)
 
-    def height(self, lon, lat) -> np.ndarray:
+    def height(self, lon: ArrayLike, lat: ArrayLike) -> np.ndarray:
         h, _ = self.dem.height_with_status(lon, lat)
         return np.asarray(h, dtype=np.float64)
 
-    def exact(self, rows, cols) -> tuple[np.ndarray, np.ndarray]:
+    def exact(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact image coordinates of global pixel indices (any shape)."""
         lon, lat = self.lonlat(rows, cols)
         h = self.height(lon, lat)
@@ -332,8 +360,9 @@ class _Block:
         """Padded (lo, hi) ellipsoidal heights over the block's lon/lat box, or None."""
         ctx = self.ctx
         t = np.linspace(-0.5, 1.0, 7)  # block edges, a bit beyond
-        rr = self.r0 - 0.5 + t * (self.size + 0.5)
-        cc = self.c0 - 0.5 + t * (self.size + 0.5)
+        # from the outer edge of the block's first pixel
+        rr = self.r0 - PIXEL_CENTRE + t * (self.size + 0.5)
+        cc = self.c0 - PIXEL_CENTRE + t * (self.size + 0.5)
         r_e = np.concatenate([rr, rr, np.full(7, rr[0]), np.full(7, rr[-1])])
         c_e = np.concatenate([np.full(7, cc[0]), np.full(7, cc[-1]), cc, cc])
         lon, lat = ctx.lonlat(r_e, c_e)
@@ -361,7 +390,8 @@ class _Block:
         rr, cc = np.meshgrid(self.r0 + k, self.c0 + k, indexing="ij")
         return self.ctx.lonlat(rr, cc)
 
-    def _nodes(self, s: int, pairs: int, lonlat=None):
+    def _nodes(self, s: int, pairs: int,
+               lonlat: tuple[np.ndarray, np.ndarray] | None = None) -> _Nodes:
         lon, lat = self._node_lonlat(s) if lonlat is None else lonlat
         lev = self.levels(pairs)
         nl = lev.size
@@ -371,7 +401,8 @@ class _Block:
         )
         return lon, lat, np.ascontiguousarray(row), np.ascontiguousarray(col)
 
-    def _interpolate_points(self, nodes, s, pairs, pr, pc):
+    def _interpolate_points(self, nodes: _Nodes, s: int, pairs: int, pr: ArrayLike,
+                            pc: ArrayLike) -> tuple[np.ndarray, ...]:
         """Lattice coordinates at block pixels (pr, pc) (1-D, block-local), the production
         path: interpolated lon/lat -> DEM -> lattice."""
         lon_n, lat_n, rn, cn = nodes
@@ -440,7 +471,7 @@ class _Block:
                              indexing="ij")
         return self.ctx.exact(rr, cc)
 
-    def _lattice(self, r_lo, r_hi, c_lo, c_hi):
+    def _lattice(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int) -> tuple[np.ndarray, ...]:
         """Lattice coordinates, interpolated lon/lat and heights of block-local pixels."""
         s, pairs = self.spacing, self.pairs
         lon_n, lat_n, rn, cn = self.nodes  # type: ignore[misc]
@@ -453,7 +484,8 @@ class _Block:
         row, col = _interp_image(rn, cn, h, r_lo, c_lo, s, lev[0], dh, pairs)
         return row, col, lon, lat, h
 
-    def lonlat_into(self, lon_w, lat_w, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+    def lonlat_into(self, lon_w: np.ndarray, lat_w: np.ndarray, r_lo: int, r_hi: int,
+                    c_lo: int, c_hi: int, dst_r: int, dst_c: int) -> None:
         """Interpolated lon/lat of block-local pixels into window arrays (lattice blocks)."""
         lon_n, lat_n, _, _ = self.nodes  # type: ignore[misc]
         nr, nc = r_hi - r_lo, c_hi - c_lo
@@ -461,7 +493,8 @@ class _Block:
         _bilinear_into(lon_n, r_lo, c_lo, self.spacing, lon_w[sl])
         _bilinear_into(lat_n, r_lo, c_lo, self.spacing, lat_w[sl])
 
-    def fill_lattice(self, out_r, out_c, h, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+    def fill_lattice(self, out_r: np.ndarray, out_c: np.ndarray, h: np.ndarray, r_lo: int,
+                     r_hi: int, c_lo: int, c_hi: int, dst_r: int, dst_c: int) -> None:
         """:meth:`fill` for a lattice block whose pixels' DEM heights ``h`` (nr, nc) are
         already sampled (at the lon/lat of :meth:`lonlat_into`)."""
         nr, nc = r_hi - r_lo, c_hi - c_lo
@@ -475,7 +508,8 @@ class _Block:
             # nodes outside the model's domain: the whole-block exact fallback, as fill does
             self.fill(out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c)
 
-    def fill(self, out_r, out_c, r_lo, r_hi, c_lo, c_hi, dst_r, dst_c) -> None:
+    def fill(self, out_r: np.ndarray, out_c: np.ndarray, r_lo: int, r_hi: int, c_lo: int,
+             c_hi: int, dst_r: int, dst_c: int) -> None:
         """Write the coordinates of block-local pixels ``[r_lo, r_hi) x [c_lo, c_hi)`` into
         ``out_*[dst_r: ..., dst_c: ...]``."""
         nr, nc = r_hi - r_lo, c_hi - c_lo
@@ -507,7 +541,8 @@ class _Block:
         out_r[sl], out_c[sl] = row[part], col[part]
 
 
-def _quadratic_in_h(vr, vc, h, lev, pairs):
+def _quadratic_in_h(vr: np.ndarray, vc: np.ndarray, h: np.ndarray, lev: np.ndarray,
+                    pairs: int) -> tuple[np.ndarray, np.ndarray]:
     """Piecewise-quadratic interpolation in ``h`` of per-level values ``(levels, N)``."""
     dh = (lev[-1] - lev[0]) / (lev.size - 1)
     u = (h - lev[0]) / dh
@@ -522,9 +557,9 @@ def _quadratic_in_h(vr, vc, h, lev, pairs):
 
 # ---------------------------------------------------------------------- public
 def source_coordinates(
-    model: Any,
-    dem: Any,
-    grid: Any,
+    model: SensorModel,
+    dem: DemSource,
+    grid: OutputGrid,
     *,
     tolerance_px: float = 0.01,
     check_points: int = 16,

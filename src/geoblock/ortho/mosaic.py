@@ -39,11 +39,21 @@ import dataclasses
 import math
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from geoblock.errors import GeoblockError
+from geoblock.errors import MosaicError  # defined there; importable from here as before
+
+if TYPE_CHECKING:
+    import dask.array as da
+    import xarray as xr
+    from numpy.typing import DTypeLike
+
+    from geoblock.io.dem import EngineDem
+    from geoblock.io.images import ImageLike, OpenedImage
+    from geoblock.models.protocol import SensorModel
+    from geoblock.ortho.grid import OutputGrid
 
 __all__ = ["MosaicError", "mosaic", "open_ortho"]
 
@@ -55,13 +65,8 @@ _PHASE_TOL = 1e-6
 _RES_RTOL = 1e-9
 
 
-class MosaicError(GeoblockError, ValueError):
-    """Sources that cannot be mosaicked without resampling (CRS, resolution, pixel phase,
-    bands) or invalid mosaic arguments."""
-
-
 # ---------------------------------------------------------------------- inputs
-def _grid_of(data: Any, index: int) -> Any:
+def _grid_of(data: xr.DataArray, index: int) -> OutputGrid:
     """The :class:`OutputGrid` of a ``(band, y, x)`` DataArray, from its ``spatial_ref``."""
     import pyproj
     from affine import Affine
@@ -87,14 +92,14 @@ def _grid_of(data: Any, index: int) -> Any:
         raise MosaicError(f"mosaic: source {index + 1}: {exc}") from exc
 
 
-def _fill_of(data: Any) -> float | None:
+def _fill_of(data: xr.DataArray) -> float | None:
     fill = data.attrs.get("_FillValue", data.encoding.get("_FillValue"))
     if fill is None and np.dtype(data.dtype).kind == "f":
         return float("nan")
     return None if fill is None else float(fill)
 
 
-def _offset(grid: Any, ref: Any, index: int) -> tuple[int, int]:
+def _offset(grid: OutputGrid, ref: OutputGrid, index: int) -> tuple[int, int]:
     """Integer ``(row, col)`` of ``grid``'s first pixel on ``ref``; raises unless aligned."""
     if not grid.crs == ref.crs:
         raise MosaicError(
@@ -119,7 +124,7 @@ def _offset(grid: Any, ref: Any, index: int) -> tuple[int, int]:
     return irow, icol
 
 
-def _union_grid(grids: Sequence[Any]) -> Any:
+def _union_grid(grids: Sequence[OutputGrid]) -> OutputGrid:
     from affine import Affine
 
     from geoblock.ortho.grid import OutputGrid
@@ -135,12 +140,20 @@ def _union_grid(grids: Sequence[Any]) -> Any:
                       (r1 - r0, c1 - c0))
 
 
+def _chunk_pair(chunks: int | tuple[int, int]) -> tuple[int, int]:
+    """``(rows, cols)`` of a chunk given as one side or a pair."""
+    if isinstance(chunks, int | float | np.number):
+        return int(chunks), int(chunks)
+    rows, cols = chunks
+    return int(rows), int(cols)
+
+
 def _chunk_tuple(n: int, size: int) -> tuple[int, ...]:
     return tuple(min(size, n - s) for s in range(0, n, size))
 
 
 # ---------------------------------------------------------------------- per-source arrays
-def _valid(array: Any, fill: float | None) -> Any:
+def _valid(array: da.Array, fill: float | None) -> da.Array:
     """``(y, x)`` bool dask array: no band is ``fill`` or NaN."""
     import dask.array as da
 
@@ -152,8 +165,8 @@ def _valid(array: Any, fill: float | None) -> Any:
     return ~bad
 
 
-def _place(array: Any, offset: tuple[int, int], shape: tuple[int, int], pad: int,
-           value: Any) -> Any:
+def _place(array: da.Array, offset: tuple[int, int], shape: tuple[int, int], pad: int,
+           value: float | bool) -> da.Array:
     """``array`` (..., h, w) placed at ``offset`` on a ``shape`` grid grown by ``pad`` pixels
     on every side; ``value`` elsewhere."""
     import dask.array as da
@@ -186,7 +199,7 @@ def _capped_distance(mask: np.ndarray, cap: float) -> np.ndarray:
     return np.minimum(ndimage.distance_transform_edt(mask), float(cap))
 
 
-def _weights(mask_padded: Any, halo: int, cap: float, shape: tuple[int, int]) -> Any:
+def _weights(mask_padded: da.Array, halo: int, cap: float, shape: tuple[int, int]) -> da.Array:
     """Feather weights on the output grid from a mask on the grid grown by ``halo``."""
     import dask.array as da
 
@@ -198,24 +211,25 @@ def _weights(mask_padded: Any, halo: int, cap: float, shape: tuple[int, int]) ->
 
 
 # ---------------------------------------------------------------------- block functions
-def _cast_block(values: np.ndarray, valid: np.ndarray, dtype: Any, fill: float) -> np.ndarray:
+def _cast_block(values: np.ndarray, valid: np.ndarray, dtype: DTypeLike,
+                fill: float) -> np.ndarray:
     from geoblock.ortho.kernels import cast
 
     return cast(values, valid, dtype, fill)
 
 
 def mosaic(
-    sources: Sequence[Any],
-    grid: Any = None,
+    sources: Sequence[xr.DataArray | tuple[ImageLike, SensorModel]],
+    grid: OutputGrid | None = None,
     *,
     method: str = "priority",
     feather_px: float = 32.0,
     nodata: float | None = None,
-    dem: Any = None,
+    dem: EngineDem | None = None,
     chunks: int | tuple[int, int] | None = None,
     kernel: str = "bilinear",
     tolerance_px: float = 0.01,
-) -> Any:
+) -> xr.Dataset:
     """Mosaic orthoimages onto one grid: priority or feathering, and a contribution band.
 
     Lazy: building the result computes nothing.
@@ -227,7 +241,10 @@ def mosaic(
         ``spatial_ref`` coordinate (``crs_wkt``, ``GeoTransform``), e.g. from
         :func:`~geoblock.ortho.graph.orthorectify` or :func:`open_ortho`, with its nodata in
         ``attrs["_FillValue"]`` (NaN for floats without one; integers without one have no
-        nodata). An ``(image, model)`` pair is orthorectified onto ``grid`` with ``dem``,
+        nodata). An ``(image, model)`` pair (``image`` a path, an open rasterio dataset, a
+        DataArray or a numpy array in the sensor's geometry, as
+        :func:`~geoblock.ortho.graph.orthorectify` takes it; ``model`` a
+        :class:`~geoblock.models.SensorModel`) is orthorectified onto ``grid`` with ``dem``,
         ``kernel``, ``tolerance_px`` and ``chunks``. Every source has the same number of bands
         and is on a grid of the same CRS, resolution and pixel phase as the others (and as
         ``grid``): nothing is reprojected or resampled.
@@ -243,8 +260,8 @@ def mosaic(
     nodata : float, optional
         Output value where no source is valid. Default: the first source's nodata; else NaN
         for float outputs and 0 for integers.
-    dem : DemSource, optional
-        Terrain heights for the ``(image, model)`` pairs.
+    dem : DemSource, float, or anything geoblock.open_dem opens, optional
+        Terrain heights for the ``(image, model)`` pairs (opened once for all of them).
     chunks : int or (int, int), optional
         Output chunk ``(rows, cols)``; default the first DataArray's chunk size, else 1024.
         The values do not depend on it.
@@ -286,6 +303,10 @@ def mosaic(
     sources = list(sources)
     if not sources:
         raise MosaicError("mosaic: no sources")
+    if dem is not None:
+        from geoblock.dem.intersect import as_dem_source
+
+        dem = as_dem_source(dem)
 
     orthos = []
     for i, src in enumerate(sources):
@@ -297,7 +318,8 @@ def mosaic(
                               f"pair, got {type(src).__name__}")
         if grid is None or dem is None:
             raise MosaicError("mosaic: (image, model) sources need a common grid= and a dem=")
-        orthos.append(orthorectify(src[0], src[1], dem, grid, kernel=kernel,
+        image, model = src
+        orthos.append(orthorectify(image, model, dem, grid, kernel=kernel,
                                    tolerance_px=tolerance_px,
                                    chunks=1024 if chunks is None else chunks))
     if chunks is None:
@@ -306,7 +328,7 @@ def mosaic(
             chunks = (int(first.chunks[1][0]), int(first.chunks[2][0]))
         else:
             chunks = 1024
-    rc, cc = (int(chunks), int(chunks)) if np.ndim(chunks) == 0 else (int(v) for v in chunks)
+    rc, cc = _chunk_pair(chunks)
     if rc <= 0 or cc <= 0:
         raise MosaicError(f"mosaic: chunks must be positive, got {chunks!r}")
 
@@ -393,17 +415,19 @@ def mosaic(
 
 
 # ---------------------------------------------------------------------- reading orthos
-def _read_block(image: Any, window: tuple[int, int, int, int]) -> np.ndarray:
+def _read_block(image: OpenedImage, window: tuple[int, int, int, int]) -> np.ndarray:
     return image.read(window)
 
 
-def open_ortho(path: str | os.PathLike[str], chunks: int | tuple[int, int] = 1024) -> Any:
+def open_ortho(path: ImageLike, chunks: int | tuple[int, int] = 1024) -> xr.DataArray:
     """A georeferenced raster (e.g. a GeoTIFF ortho) as a lazy ``(band, y, x)`` DataArray.
 
     Parameters
     ----------
-    path : str or os.PathLike
-        Any north-up, georeferenced raster rasterio reads.
+    path : str, os.PathLike or an opened image
+        Any north-up, georeferenced raster rasterio reads (or what
+        :func:`geoblock.io.open_image` takes: an open rasterio dataset, a georeferenced
+        numpy array or DataArray).
     chunks : int or (int, int)
         Chunk ``(rows, cols)``, pixels; each chunk is one windowed read.
 
@@ -427,12 +451,13 @@ def open_ortho(path: str | os.PathLike[str], chunks: int | tuple[int, int] = 102
     from dask.base import tokenize
     from dask.highlevelgraph import HighLevelGraph
 
-    from geoblock.io.images import open_image
+    from geoblock.io.images import ImageSource, open_image
     from geoblock.ortho.graph import _coords
     from geoblock.ortho.grid import OutputGrid
 
     image = open_image(path)  # one open: shape, bands, dtype, nodata, CRS and geotransform
-    if image.transform is None:  # an ImageSource made by hand: its file's georeferencing
+    if image.transform is None and isinstance(image, ImageSource):
+        # an ImageSource made by hand: its file's georeferencing
         fresh = open_image(image.path)
         image = dataclasses.replace(image, crs=fresh.crs, transform=fresh.transform)
     crs, transform = image.crs, image.transform
@@ -442,11 +467,11 @@ def open_ortho(path: str | os.PathLike[str], chunks: int | tuple[int, int] = 102
         grid = OutputGrid(pyproj.CRS.from_wkt(crs.to_wkt()), transform, image.shape)
     except ValueError as exc:
         raise MosaicError(f"{image.path} is not a north-up ortho: {exc}") from exc
-    rc, cc = (int(chunks), int(chunks)) if np.ndim(chunks) == 0 else (int(v) for v in chunks)
+    rc, cc = _chunk_pair(chunks)
     rows, cols = image.shape
     row_chunks, col_chunks = _chunk_tuple(rows, rc), _chunk_tuple(cols, cc)
     name = "read-ortho-" + tokenize(image, row_chunks, col_chunks)
-    dsk = {}
+    dsk: dict[Any, Any] = {}
     r0 = 0
     for i, h in enumerate(row_chunks):
         c0 = 0

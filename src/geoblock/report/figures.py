@@ -14,7 +14,6 @@ Each function takes plain arrays, returns the :class:`matplotlib.figure.Figure` 
 
 from __future__ import annotations
 
-import io
 import math
 import os
 from collections.abc import Mapping
@@ -29,8 +28,8 @@ from matplotlib.lines import Line2D
 from geoblock import coords
 from geoblock.adjust.statistics import POINT_KINDS, _kinds, confidence_interval
 from geoblock.errors import ObservationError, ShapeMismatchError
-from geoblock.report._files import write_atomic
-from geoblock.typing import ArrayLike
+from geoblock.io import files
+from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = [
     "KIND_STYLES",
@@ -71,7 +70,8 @@ def nice_number(x: float, *, round_down: bool = True) -> float:
 
 
 def to_local_en(lon: ArrayLike, lat: ArrayLike, h: ArrayLike = 0.0,
-                origin: tuple[float, float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                origin: tuple[float, float, float] | None = None,
+                ) -> tuple[Float64Array, Float64Array]:
     """Positions for the plots: local east and north metres of ``lon, lat`` (degrees).
 
     The tangent plane is centred on ``origin`` ``(lon, lat, h)`` or, by default, on the
@@ -84,36 +84,35 @@ def to_local_en(lon: ArrayLike, lat: ArrayLike, h: ArrayLike = 0.0,
     return e, n
 
 
-def save_figure(fig: Figure, path: str | os.PathLike, *, dpi: int = 150) -> Path:
-    """Save ``fig`` to ``path`` atomically; the suffix picks the format (``.png``, ``.svg``).
+def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 150) -> Path:
+    """Save ``fig`` to ``path`` atomically (:func:`geoblock.io.files.save_figure`); the
+    suffix picks the format (``.png``, ``.svg``).
 
     Raises
     ------
     GeoblockIOError
         The file cannot be written.
     """
-    path = Path(path)
-    fmt = path.suffix.lstrip(".").lower() or "png"
-    buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, dpi=dpi)
-    return write_atomic(path, lambda f: f.write(buf.getvalue()))
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    return files.save_figure(fig, path, format=fmt, dpi=dpi)
 
 
 def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
     if ax is not None:
-        return ax.figure, ax
+        figure = ax.figure
+        return (figure if isinstance(figure, Figure) else figure.figure), ax  # a SubFigure's root
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     return fig, fig.add_subplot()
 
 
-def _finish(fig: Figure, path: str | os.PathLike | None, dpi: int) -> Figure:
+def _finish(fig: Figure, path: str | os.PathLike[str] | None, dpi: int) -> Figure:
     if path is not None:
         save_figure(fig, path, dpi=dpi)
     return fig
 
 
-def _same_length(where: str, **arrays: ArrayLike) -> dict[str, np.ndarray]:
+def _same_length(where: str, **arrays: ArrayLike) -> dict[str, Float64Array]:
     out = {k: np.asarray(v, dtype=np.float64).ravel() if np.ndim(v) else
            np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
     sizes = {k: v.size for k, v in out.items() if v.ndim}
@@ -139,7 +138,7 @@ def error_vector_plot(
     ylabel: str = "N (m)",
     ax: Axes | None = None,
     figsize: tuple[float, float] = (6.4, 6.4),
-    path: str | os.PathLike | None = None,
+    path: str | os.PathLike[str] | None = None,
     dpi: int = 150,
 ) -> Figure:
     """Error vectors at the points, exaggerated by ``scale`` (Teo et al. Figs. 9-12).
@@ -247,7 +246,7 @@ def rmse_vs_gcp_count(
     ylabel: str = "RMSE 2D at ICPs (m)",
     ax: Axes | None = None,
     figsize: tuple[float, float] = (6.4, 4.2),
-    path: str | os.PathLike | None = None,
+    path: str | os.PathLike[str] | None = None,
     dpi: int = 150,
 ) -> Figure:
     """RMSE against the number of GCPs, a line per model or method (Aguilar et al. Figs. 3, 6, 7).
@@ -348,7 +347,7 @@ def residual_vs_distance(
     ylabel: str = "2D residual at ICPs (m)",
     ax: Axes | None = None,
     figsize: tuple[float, float] | None = None,
-    path: str | os.PathLike | None = None,
+    path: str | os.PathLike[str] | None = None,
     dpi: int = 150,
 ) -> Figure:
     """Residuals against the planimetric distance from the image centre (Aguilar et al. Fig. 4).
@@ -395,7 +394,8 @@ def residual_vs_distance(
         rows = math.ceil(k / cols)
         fig = Figure(figsize=figsize or (4.2 * cols, 3.4 * rows), layout="constrained")
         FigureCanvasAgg(fig)
-        axes = fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False).ravel()
+        axes: list[Axes] = list(
+            fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False).ravel())
         for j, extra in enumerate(axes[k:], start=k):
             extra.set_visible(False)
             axes[j - cols].xaxis.set_tick_params(labelbottom=True)  # the panel above it

@@ -22,7 +22,7 @@ from typing import Any
 
 from geoblock.adjust.statistics import AccuracyStats, ImageResidualStats
 from geoblock.errors import ObservationError
-from geoblock.report._files import write_atomic
+from geoblock.io import files
 
 __all__ = [
     "AGUILAR_COLUMNS",
@@ -207,15 +207,16 @@ def comparison_table(
     return _render(header, body, len(labels), fmt, decimals, title)
 
 
-def write_table(text: str, path: str | os.PathLike) -> Path:
-    """Write a table's text to ``path`` (UTF-8, atomically); returns the path.
+def write_table(text: str, path: str | os.PathLike[str]) -> Path:
+    """Write a table's text to ``path`` (UTF-8, atomically,
+    :func:`geoblock.io.files.write_text`); returns the path.
 
     Raises
     ------
     GeoblockIOError
         The file cannot be written.
     """
-    return write_atomic(path, lambda f: f.write(text.encode("utf-8")))
+    return files.write_text(path, text)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -272,7 +273,7 @@ def _render(header: list[str], body: list[list[Any]], n_labels: int, fmt: str,
         writer.writerows(text)
         return out.getvalue()
 
-    def line(cells):
+    def line(cells: Sequence[str]) -> str:
         return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
 
     align = [":---"] * n_labels + ["---:"] * (len(header) - n_labels)

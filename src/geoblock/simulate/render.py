@@ -290,13 +290,13 @@ def pixel_ground(
     if bad.any():
         # every pixel of a bad cell (pixels on a shared edge belong to the cell found above)
         pix_bad = bad[ci_r][:, ci_c]
-        rr, cc2 = np.nonzero(pix_bad)
-        e_lon, e_lat, e_ok = _exact(model, dem, (rr + row_start).astype(float),
-                                    cc2.astype(float))
-        lon[rr, cc2] = e_lon
-        lat[rr, cc2] = e_lat
-        ok[rr, cc2] = e_ok
-        exact += float(rr.size)
+        br, bc = np.nonzero(pix_bad)
+        e_lon, e_lat, e_ok = _exact(model, dem, (br + row_start).astype(float),
+                                    bc.astype(float))
+        lon[br, bc] = e_lon
+        lat[br, bc] = e_lat
+        ok[br, bc] = e_ok
+        exact += float(br.size)
     ok &= np.isfinite(lon) & np.isfinite(lat)
     lon[~ok] = np.nan
     lat[~ok] = np.nan

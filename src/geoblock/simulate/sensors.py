@@ -46,6 +46,7 @@ from geoblock.models.linescan import (
     orbital_frame,
     rotation_xyz,
 )
+from geoblock.pixels import image_domain
 from geoblock.typing import Float64Array
 
 __all__ = [
@@ -479,8 +480,8 @@ def onboard_error(true: LinescanModel, onboard: LinescanModel, n: int = 9,
     -------
     GroundError
     """
-    rows, cols = true.shape
-    r, c = np.meshgrid(np.linspace(-0.5, rows - 0.5, n), np.linspace(-0.5, cols - 0.5, n),
+    r0, c0, r1, c1 = image_domain(true.shape)
+    r, c = np.meshgrid(np.linspace(r0, r1, n), np.linspace(c0, c1, n),
                        indexing="ij")
     g_true = true.backproject(r, c, h)
     g_ob = onboard.backproject(r, c, h)

@@ -7,21 +7,27 @@ the image has, e.g. a simulated on-board physical model) is fitted to GCPs by
 :func:`geoblock.adjust.resect`; its accuracy is the ground error at the ICPs: the ICP's true
 image position backprojected through the refined model at the true height, minus the true
 ground position (local east/north metres, :func:`geoblock.adjust.ground_errors`), the same
-measure as the on-board model's error in a simulated block's report.
+measure as the on-board model's error in a simulated block's report
+(:func:`onboard_errors`). :func:`refinement_points` takes one image's GCPs and ICPs out of a
+:class:`~geoblock.simulate.points.PointSet`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from geoblock.adjust import ControlPoints, ground_errors, resect
+from geoblock.adjust import ControlPoints, PointErrors, ground_errors, resect
 from geoblock.errors import GeoblockError
 from geoblock.models import ImageCorrection
+from geoblock.simulate.points import PointSet
 from geoblock.typing import ArrayLike
 
-__all__ = ["CheckPoints", "GcpCountStudy", "gcp_count_study", "refined_errors"]
+__all__ = ["CheckPoints", "GcpCountStudy", "gcp_count_study", "onboard_errors",
+           "refined_errors", "refinement_points"]
 
 #: Correction orders and the papers' names for them on an RPC.
 ORDER_NAMES = {0: "RPCV-0 (shift)", 1: "RPCV-1 (affine)", 2: "order 2"}
@@ -157,3 +163,68 @@ def gcp_count_study(
                 rmse[r, k] = float(np.sqrt(np.nanmean(err**2)))
         out[int(order)] = rmse
     return GcpCountStudy(counts, out)
+
+
+def _point_index(points: PointSet, ids: np.ndarray) -> np.ndarray:
+    """Row of each of ``ids`` in ``points.ground``."""
+    index = {pid: i for i, pid in enumerate(points.ground.id.tolist())}
+    return np.array([index[i] for i in ids.tolist()], dtype=np.intp)
+
+
+def onboard_errors(sensors: Mapping[str, Any], points: PointSet) -> PointErrors:
+    """Ground errors of the on-board models at the GCP and ICP measurements.
+
+    The true image position of each measurement is backprojected through its image's
+    on-board model at the point's true height and compared with the true ground position:
+    the error of the model alone (no pointing, survey or DEM error), in local east/north
+    metres.
+
+    Parameters
+    ----------
+    sensors : mapping of str to SimulatedSensor
+        By image name (anything with an ``onboard_model``).
+    points : PointSet
+
+    Returns
+    -------
+    PointErrors
+        One row per GCP/ICP measurement, kinds ``GCP`` and ``ICP``, with its image.
+    """
+    m, g = points.image, points.ground
+    keep = np.flatnonzero(np.isin(m.kind, ("gcp", "icp")))
+    k = _point_index(points, m.id[keep])
+    lon = np.full(keep.size, np.nan)
+    lat = np.full(keep.size, np.nan)
+    h_true = g.h_true[k]
+    for image_id, sim in sensors.items():  # a loop over images, not points
+        sel = np.flatnonzero(m.image[keep] == image_id)
+        if sel.size:
+            est = sim.onboard_model.backproject(m.row_true[keep][sel], m.col_true[keep][sel],
+                                                h_true[sel])
+            lon[sel], lat[sel] = est.lon, est.lat
+    return PointErrors.from_ground(m.id[keep], np.char.upper(m.kind[keep].astype(str)), lon,
+                                   lat, g.lon_true[k], g.lat_true[k], h=h_true, h_ref=h_true,
+                                   image=m.image[keep])
+
+
+def refinement_points(points: PointSet,
+                      image_id: str) -> tuple[ControlPoints | None, CheckPoints | None]:
+    """One image's points for a refinement study: its GCPs as measured and surveyed
+    (:class:`~geoblock.adjust.ControlPoints`, with their sigmas) and its ICPs with their
+    truth (:class:`CheckPoints`); None for a kind the image does not have."""
+    m, g = points.image, points.ground
+    gcps: ControlPoints | None = None
+    icps: CheckPoints | None = None
+    sel = np.flatnonzero((m.image == image_id) & (m.kind == "gcp"))
+    if sel.size:
+        k = _point_index(points, m.id[sel])
+        gcps = ControlPoints(id=m.id[sel], lon=g.lon[k], lat=g.lat[k], h=g.h[k],
+                             row=m.row[sel], col=m.col[sel], sigma_row=m.sigma[sel],
+                             sigma_col=m.sigma[sel], sigma_e=g.sigma_e[k],
+                             sigma_n=g.sigma_n[k], sigma_h=g.sigma_h[k])
+    sel = np.flatnonzero((m.image == image_id) & (m.kind == "icp"))
+    if sel.size:
+        k = _point_index(points, m.id[sel])
+        icps = CheckPoints(g.lon_true[k], g.lat_true[k], g.h_true[k], m.row_true[sel],
+                           m.col_true[sel])
+    return gcps, icps

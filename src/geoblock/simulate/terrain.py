@@ -33,6 +33,7 @@ from geoblock._affine import apply as affine_apply
 from geoblock.dem.grid import GridDem, _is_lonlat
 from geoblock.dem.sampling import sample
 from geoblock.errors import DemError
+from geoblock.pixels import centre_to_corner, corner_to_centre, pixel_centres
 
 __all__ = ["Grid", "Terrain", "fractal_terrain", "measured_dem", "ridged_terrain"]
 
@@ -116,7 +117,8 @@ class Grid:
         crs : pyproj.CRS or str, optional
             Default: the UTM zone of the centre.
         """
-        sx, sy = (float(size_m), float(size_m)) if np.isscalar(size_m) else map(float, size_m)
+        size = np.broadcast_to(np.asarray(size_m, dtype=np.float64), (2,))  # one or a pair
+        sx, sy = float(size[0]), float(size[1])
         crs = coords.utm_crs(lon, lat) if crs is None else pyproj.CRS.from_user_input(crs)
         horizontal = _horizontal(crs)
         if horizontal.is_geographic:
@@ -149,9 +151,7 @@ class Grid:
 
     def xy(self) -> tuple[np.ndarray, np.ndarray]:
         """CRS coordinates of the cell centres: ``x`` (cols,), ``y`` (rows,)."""
-        rows, cols = self.shape
-        t = self.transform
-        return t.c + (np.arange(cols) + 0.5) * t.a, t.f + (np.arange(rows) + 0.5) * t.e
+        return pixel_centres(self.transform, self.shape)
 
     def lonlat(self) -> tuple[np.ndarray, np.ndarray]:
         """WGS84 longitude and latitude of every cell centre, degrees, (R, C) each."""
@@ -415,7 +415,7 @@ def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_
             f"{hi - lo:.0f} m on this grid (reachable {s_hi:.1f}..{s_lo:.1f} degrees): change the "
             "relief, the grid extent or its resolution"
         )
-    best = None
+    best: np.ndarray | None = None
     for _ in range(max_iterations):
         g = 0.5 * (g_lo + g_hi)
         best = None  # free the previous surface before making the next
@@ -427,6 +427,8 @@ def _finish(raw: np.ndarray, grid: Grid, relief: tuple[float, float], max_slope_
             g_lo = g
         else:
             g_hi = g
+    if best is None:
+        raise DemError(f"terrain: max_iterations must be >= 1, got {max_iterations}")
     return Terrain._owning(best, grid, vertical)
 
 
@@ -632,9 +634,10 @@ def measured_dem(
     n_check = min(400_000, max(50_000, truth.heights.size))
     pr = rng.uniform(0.0, grid.shape[0] - 1.0, n_check)
     pc = rng.uniform(0.0, grid.shape[1] - 1.0, n_check)
-    cx, cy = affine_apply(grid.transform, pc + 0.5, pr + 0.5)
+    line, pixel = centre_to_corner(pr, pc)
+    cx, cy = affine_apply(grid.transform, pixel, line)
     col_c, row_c = affine_apply(~truth.grid.transform, cx, cy)
-    true_h = sample(truth.heights, row_c - 0.5, col_c - 0.5, "bilinear")
+    true_h = sample(truth.heights, *corner_to_centre(row_c, col_c), "bilinear")
     r_err = sample(heights, pr, pc, "bilinear") - true_h
     n_err = _bilinear_at(noise, pr, pc)
     ok = np.isfinite(r_err) & np.isfinite(n_err)
@@ -673,8 +676,9 @@ def _resampled(truth: Terrain, grid: Grid) -> np.ndarray:
     t = truth.grid.transform
     x, y = grid.xy()
     rows_t, cols_t = truth.shape
-    r_lo, r_w = _axis_taps((y - t.f) / t.e - 0.5, rows_t)
-    c_lo, c_w = _axis_taps((x - t.c) / t.a - 0.5, cols_t)
+    row, col = corner_to_centre((y - t.f) / t.e, (x - t.c) / t.a)  # each post's truth row/col
+    r_lo, r_w = _axis_taps(row, rows_t)
+    c_lo, c_w = _axis_taps(col, cols_t)
     c_w1 = 1.0 - c_w
     out = np.empty(grid.shape)
     for r0, r1 in _strips((grid.shape[0], cols_t)):

@@ -6,10 +6,16 @@
 * :class:`SensorModelContract` is a pytest class to subclass with a ``model`` fixture, one test
   per check;
 * :mod:`geoblock.testing.synthetic` holds analytic models, :mod:`geoblock.testing.strategies`
-  hypothesis strategies.
+  hypothesis strategies;
+* the synthetic models are test models, not registered for users: :func:`enable_synthetic_models`
+  registers them in this process (their JSON then opens with :func:`geoblock.open_model`), and
+  ``GEOBLOCK_PLUGIN_MODULES=geoblock.testing.plugin`` in a subprocess's environment
+  (:mod:`geoblock.testing.plugin`).
 
 ``SensorModelContract`` and the strategies need the ``testing`` extra (pytest, hypothesis).
 """
+
+from typing import Any
 
 from geoblock.testing.checks import (
     CHECKS,
@@ -29,6 +35,7 @@ from geoblock.testing.checks import (
     check_shapes,
     check_with_parameters,
 )
+from geoblock.testing.plugin import disable_synthetic_models, enable_synthetic_models
 
 __all__ = [
     "CHECKS",
@@ -48,10 +55,12 @@ __all__ = [
     "check_serialization",
     "check_shapes",
     "check_with_parameters",
+    "disable_synthetic_models",
+    "enable_synthetic_models",
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name == "SensorModelContract":
         from geoblock.testing.contract import SensorModelContract
 

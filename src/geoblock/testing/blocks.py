@@ -54,13 +54,13 @@ class SyntheticBlock:
 
 
 def _terrain(frame: coords.LocalFrame, extent_m: float, relief_m: float, spacing_m: float,
-             rng: np.random.Generator) -> tuple[GridDem, callable]:
+             rng: np.random.Generator) -> tuple[GridDem, Callable[..., np.ndarray]]:
     """Smooth sinusoidal terrain over a square of ``extent_m`` around the frame origin, as a
     lon/lat GridDem of ellipsoidal heights, and the exact height function of (e, n)."""
     k = rng.uniform(1.0, 3.0, size=(3, 2)) * 2 * math.pi / extent_m
     ph = rng.uniform(0, 2 * math.pi, size=3)
 
-    def height(e, n):
+    def height(e: np.ndarray, n: np.ndarray) -> np.ndarray:
         z = sum(np.sin(k[i, 0] * e + k[i, 1] * n + ph[i]) for i in range(3))
         return frame.h0 + 0.5 * relief_m * (1 + z / 3)
 
@@ -173,7 +173,7 @@ def affine_block(
             centres[image] = (ce, cn)
     images = list(true_models)
 
-    def measure(e, n):
+    def measure(e: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, ...]:
         """Project ground points into every image: (M,) point index, image, row, col."""
         lon, lat, h = frame.to_geodetic(e, n, 0.0)
         h = height(e, n)
@@ -191,10 +191,14 @@ def affine_block(
 
     ids, kinds = [], []
     pt_lon, pt_lat, pt_h = [], [], []
-    m_id, m_img, m_row, m_col, m_kind = [], [], [], [], []
+    m_id: list[str] = []
+    m_img: list[str] = []
+    m_row: list[float] = []
+    m_col: list[float] = []
+    m_kind: list[str] = []
     counter = 0
 
-    def add(kind: str, e, n, min_images: int, want: int) -> None:
+    def add(kind: str, e: np.ndarray, n: np.ndarray, min_images: int, want: int) -> None:
         nonlocal counter
         lon, lat, h, idx, img, r, c = measure(e, n)
         seen = np.bincount(idx, minlength=e.size)
@@ -228,13 +232,13 @@ def affine_block(
         n = rng.uniform(-half_n, half_n, 20 * count + 100)
         add(kind, e, n, 2, count)
 
-    m_id = np.array(m_id)
-    m_kind = np.array(m_kind)
+    measured_id = np.array(m_id)
+    measured_kind = np.array(m_kind)
     row = np.array(m_row) + sigma_px * rng.normal(size=len(m_row))
     col = np.array(m_col) + sigma_px * rng.normal(size=len(m_col))
     blunder = np.zeros(row.size, bool)
     if blunder_fraction > 0:
-        tp = np.flatnonzero(m_kind == "tp")
+        tp = np.flatnonzero(measured_kind == "tp")
         pick = rng.choice(tp, size=int(round(blunder_fraction * tp.size)), replace=False)
         size = rng.uniform(*blunder_px, pick.size)
         angle = rng.uniform(0, 2 * np.pi, pick.size)
@@ -251,7 +255,8 @@ def affine_block(
     glon, glat, gh = frame.to_geodetic(e0 + noise[:, 0], n0 + noise[:, 1], u0 + noise[:, 2])
     ground = GroundPoints(ids_a[ground_sel], kinds_a[ground_sel], glon, glat, gh,
                           sigma_ground_m, sigma_ground_m, sigma_ground_m)
-    meas = ImagePoints(m_id, np.array(m_img), row, col, sigma_px, sigma_px, m_kind)
+    meas = ImagePoints(measured_id, np.array(m_img), row, col, sigma_px, sigma_px,
+                       measured_kind)
     models = {i: ImageCorrection(m if wrap is None else wrap(m), order=1)
               for i, m in onboard.items()}
     block = Block(models, meas, ground, dem, dem_sigma_m)

@@ -205,7 +205,7 @@ def _ground_sample(
     return lon, lat, hh
 
 
-def _sample(model: Any, check: str, n: int, seed: int):
+def _sample(model: Any, check: str, n: int, seed: int) -> tuple[np.ndarray, ...]:
     row, col, h = image_sample(model, n, seed)
     lon, lat, hh = _ground_sample(check, model, row, col, h)
     return row, col, h, lon, lat, hh
@@ -563,7 +563,7 @@ def check_ground_partials(
     excess = np.abs(got - ref) / tol
     excess = np.where(np.isnan(excess), np.inf, excess)
     if np.any(excess > 1.0):
-        i, k, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
+        i, k, j = (int(v) for v in np.unravel_index(int(np.argmax(excess)), excess.shape))
         rot = coords.enu_rotation(lon, lat)
         hint = _pattern_hint(got, ref, {
             "the sign is flipped": -ref,
@@ -725,7 +725,7 @@ def check_parameter_perturbation(
                       model.with_parameters, v)
         return _project_flat(moved, lon, lat, h) - base
 
-    for k in np.flatnonzero(adjustable):
+    for k in np.flatnonzero(adjustable).tolist():
         delta = float(sigmas[k]) if np.isfinite(sigmas[k]) else 1e-3 * max(1.0, abs(values[k]))
         size = max(float(np.max(np.abs(motion(k, delta)))),
                    float(np.max(np.abs(pp[..., k]))) * delta)
@@ -1300,7 +1300,7 @@ def check_no_mutation(model: Any, *, n: int = 3, seed: int = 0) -> None:
 
 
 # ================================================================================ NaN, shapes
-def _nan_sample(model: Any, check: str):
+def _nan_sample(model: Any, check: str) -> tuple[np.ndarray, ...]:
     rows, cols = model.shape
     h0, h1 = model.height_range
     r, c = np.meshgrid(np.linspace(0.0, rows - 1.0, 3), np.linspace(0.0, cols - 1.0, 2),
@@ -1470,7 +1470,7 @@ def check_shapes(model: Any) -> None:
     lon_s, lat_s, _ = _ground_sample(check, model, img, img_c, np.full(3, hm))
     lon0, lat0, row0, col0 = float(lon_s[1]), float(lat_s[1]), float(img[1]), float(img_c[1])
 
-    def methods(kind: str):
+    def methods(kind: str) -> tuple[tuple[str, tuple[Any, ...], Callable[..., Any]], ...]:
         if kind == "ground":
             return (("project", ("row", "col"), model.project),
                     ("project_with_status", ("row", "col"), model.project_with_status),

@@ -9,8 +9,11 @@ they exercise the two ways of writing a model on :class:`~geoblock.models.Sensor
   one exposure per row, a satellite moving at constant velocity, a linear CCD) with numeric
   partials; its projection comes from the base class's Newton inversion.
 
-Both are registered by geoblock's built-in plugin (``synthetic-affine``,
-``synthetic-pushbroom``) so that they serialise, pickle and open like any model.
+They build, project, pickle and round-trip ``to_dict``/``from_dict`` on their own. They are
+test models, so geoblock's built-in plugin does not register them (``synthetic-affine``,
+``synthetic-pushbroom``): :func:`geoblock.testing.enable_synthetic_models` (or
+``GEOBLOCK_PLUGIN_MODULES=geoblock.testing.plugin``) does, and their model JSON then opens with
+:func:`geoblock.open_model` like any model's.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from geoblock import coords
-from geoblock.models.base import SensorModelBase
+from geoblock.models.base import KernelResult, SensorModelBase
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import ArrayLike, Float64Array
 
@@ -63,7 +66,7 @@ class AffineCamera(SensorModelBase):
         sigmas: ArrayLike | None = None,
     ) -> None:
         self._shape = (int(shape[0]), int(shape[1]))
-        self._origin = tuple(float(v) for v in origin)
+        self._origin = (float(origin[0]), float(origin[1]), float(origin[2]))
         self._frame = coords.LocalFrame(*self._origin)
         coeffs = np.asarray(coefficients, dtype=np.float64).reshape(2, 4)
         self._height_range = (float(height_range[0]), float(height_range[1]))
@@ -120,7 +123,8 @@ class AffineCamera(SensorModelBase):
     def ground_seed(self) -> tuple[float, float]:
         return self._origin[0], self._origin[1]
 
-    def ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon: Float64Array, lat: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         e, n, u = self._frame.from_geodetic(lon, lat, h)
         design = np.stack([np.ones_like(e), e, n, u], axis=-1)
         rc = design @ self.coefficients.T
@@ -267,7 +271,8 @@ class ConstantVelocityPushbroom(SensorModelBase):
         r_yaw = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
         return r_yaw @ r_pitch @ r_roll
 
-    def image_to_ground(self, row, col, h):
+    def image_to_ground(self, row: Float64Array, col: Float64Array, h: Float64Array
+                        ) -> KernelResult:
         t = row * self._line_period
         origin_enu = self._position + t[:, None] * self._velocity
         tan_psi = (col - (self._shape[1] - 1) / 2.0) * self._ifov

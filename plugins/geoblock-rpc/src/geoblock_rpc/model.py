@@ -11,7 +11,7 @@ import numpy as np
 
 from geoblock import GroundCoords, ImageCoords, ParameterSet, SensorModelBase, coords
 from geoblock.errors import ModelFormatError, SerializationError
-from geoblock.models import image_shape
+from geoblock.models import broadcast_float64, image_shape
 from geoblock.typing import ArrayLike, Float64Array
 from geoblock_rpc import _kernels
 from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
@@ -37,8 +37,6 @@ def _flat(*arrays: ArrayLike, names: tuple[str, ...]) -> tuple[tuple[int, ...], 
     (24 MB saved per 10^6 points); anything else goes through the core's broadcasting, with
     its error messages.
     """
-    from geoblock._array import broadcast_float64
-
     try:
         arrs = [np.asarray(a, dtype=np.float64) for a in arrays]
     except (TypeError, ValueError):

@@ -37,6 +37,14 @@ A file this plugin does not recognise makes the hook return ``None``; a recognis
 without usable coefficients raises :class:`~geoblock.errors.ModelFormatError` naming the file
 and what is missing.
 
+Reading. The readers never open a file themselves: they get its bytes from
+:func:`geoblock.io.metadata.read_bytes` (sniffing, TIFF tags) or parse it with
+:func:`~geoblock.io.metadata.read_xml`; each text format is tokenised into a mapping of its own
+keys (``KEY: value`` lines, ``key = value;`` groups, OSSIM keywords, JSON, a VRT's or an
+ISD's key/value block), whose fields are read through :class:`geoblock.io.metadata.Fields`,
+and the DIMAP documents' through :class:`~geoblock.io.metadata.XmlFields`: a missing, empty
+or non-numeric field is refused naming the file and the field as the file spells it.
+
 Crops. RPC tags describe the full image. :func:`read_rpc` shifts the offsets when asked:
 ``crop_offset=(row0, col0)`` explicitly, or ``crop_from_geotransform=True`` to take
 ``(row0, col0)`` from a pixel-unit geotransform (origin ``(col0, row0)``, pixel size 1, no
@@ -50,15 +58,17 @@ import json
 import math
 import os
 import re
+import struct
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from geoblock.errors import ModelFormatError, UnsupportedFormatError
+from geoblock.errors import GeoblockIOError, ModelFormatError, UnsupportedFormatError
 from geoblock.io import open_image, open_quietly
+from geoblock.io.metadata import ErrorFactory, Fields, XmlFields, decode_text, read_bytes, read_xml
 from geoblock.models import image_shape
 from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 
@@ -87,10 +97,54 @@ def _src(path: Path) -> str:
     return str(path)
 
 
-def _require(md: Mapping[str, Any], keys: tuple[str, ...], path: Path, what: str) -> None:
+def _require(md: Mapping[str, Any], keys: Sequence[str], path: Path, what: str) -> None:
     missing = [k for k in keys if k not in md]
     if missing:
         raise ModelFormatError(f"{_src(path)}: {what} lacks {', '.join(missing)}")
+
+
+def _field_error(what: str, lines: Mapping[str, int] | None = None,
+                 quote: bool = False) -> ErrorFactory:
+    """The :mod:`geoblock.io.metadata` error factory of one format:
+    ``ModelFormatError("<file>[, line n]: <what> field <field> <problem>")`` (the line of a
+    text format's key from ``lines``; ``quote`` the field as JSON keys are)."""
+
+    def error(source: str, field: str, problem: str) -> ModelFormatError:
+        line = f", line {lines[field]}" if lines and field in lines else ""
+        name = repr(field) if quote else field
+        return ModelFormatError(f"{source}{line}: {what} field {name} {problem}")
+
+    return error
+
+
+def _xml_error(source: str, field: str, problem: str) -> ModelFormatError:
+    """``read_xml``'s error for a document that is not well-formed: ``<file>: XML: ...``."""
+    return ModelFormatError(f"{source}: {field}: {problem}")
+
+
+#: a GDAL key's source in a format: the file's own key, or one key per coefficient (20)
+FieldKeys = Mapping[str, str | Sequence[str]]
+
+
+def _rpc_from_fields(fields: Fields, keys: FieldKeys) -> Rpc00b:
+    """The RPC whose GDAL keys ``keys`` maps to ``fields``' own keys (read through
+    :class:`~geoblock.io.metadata.Fields`: numbers, or text starting with one as in
+    ``"+015834.00 pixels"``; a coefficient list as 20 numbers or whitespace-separated text,
+    or 20 keys). An optional field (``ERR_BIAS``, ``MIN_LONG`` ...) that is absent or has no
+    value is absent; the callers have checked that the required keys are present."""
+    values: dict[str, Any] = {}
+    for gdal_key, key in keys.items():
+        if not isinstance(key, str):  # one key per coefficient
+            values[gdal_key] = np.array([fields.number(k, from_text=True) for k in key])
+        elif gdal_key in _POLY_KEYS:
+            values[gdal_key] = fields.numbers(key, count=20)
+        elif gdal_key in _OPTIONAL_KEYS:
+            value = fields.get(key, None)
+            if value is not None and not (isinstance(value, str) and not value.strip()):
+                values[gdal_key] = fields.number(key, from_text=True)
+        else:
+            values[gdal_key] = fields.number(key, from_text=True)
+    return Rpc00b.from_gdal(values, source=fields.source)
 
 
 def _image_size(path: Path, rows: Any, cols: Any, fields: str) -> Shape:
@@ -102,39 +156,7 @@ def _image_size(path: Path, rows: Any, cols: Any, fields: str) -> Shape:
     return image_shape((rows, cols), f"{_src(path)}: {fields}", maximum=int(MAX_PIXELS))
 
 
-def _xml_text(elem: ET.Element | None, tag: str, path: Path, where: str) -> str:
-    node = None if elem is None else elem.find(tag)
-    if node is None or node.text is None or not node.text.strip():
-        raise ModelFormatError(f"{_src(path)}: {where} has no <{tag.split('/')[-1]}> value")
-    return node.text.strip()
-
-
-def _local(tag: str) -> str:
-    return tag.rsplit("}", 1)[-1]
-
-
-def _strip_namespaces(root: ET.Element) -> ET.Element:
-    for elem in root.iter():
-        if isinstance(elem.tag, str):
-            elem.tag = _local(elem.tag)
-    return root
-
-
 # ---------------------------------------------------------------------------------- sniffing
-def _read_head(path: Path) -> bytes:
-    with open(path, "rb") as fh:
-        return fh.read(_HEAD_BYTES)
-
-
-def _decode(data: bytes) -> str:
-    for enc in ("utf-8-sig", "latin-1"):
-        try:
-            return data.decode(enc)
-        except UnicodeDecodeError:
-            continue
-    return ""  # pragma: no cover - latin-1 decodes anything
-
-
 def _looks_binary(head: bytes) -> bool:
     return head.startswith(_RASTER_MAGIC) or b"\x00" in head[:4096]
 
@@ -158,12 +180,12 @@ def sniff_rpc_format(path: str | os.PathLike[str]) -> str | None:
     VRT, DigitalGlobe ISD, DIMAP), ``"rpc-txt"``, ``"rpb"``, ``"ossim-kwl"``, ``"json"``.
     """
     path = Path(path)
-    head = _read_head(path)
+    head = read_bytes(path, _HEAD_BYTES)
     if not head:
         return None
     if _looks_binary(head):
         return "gdal"
-    text = _decode(head).lstrip()
+    text = decode_text(head).lstrip()
     if text.startswith("<"):
         return "xml"
     if text.startswith("{"):
@@ -188,37 +210,31 @@ def _tiff_rpc_tag(path: Path) -> dict[str, str] | None:
     GDAL reports that tag as ``%.15g`` text (up to ~1e-8 px off for a 40 000 px image); this
     reads the 92 doubles themselves. ``None`` when absent or unreadable.
     """
-    import struct
-
     try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-            bo = {b"II": "<", b"MM": ">"}.get(head[:2])
-            if bo is None:
-                return None
-            (magic,) = struct.unpack(bo + "H", head[2:4])
-            if magic == 42:
-                (ifd,) = struct.unpack(bo + "I", head[4:8])
-                fh.seek(ifd)
-                (n,) = struct.unpack(bo + "H", fh.read(2))
-                entry, fmt = 12, bo + "HHII"
-            elif magic == 43:
-                (ifd,) = struct.unpack(bo + "Q", head[8:16])
-                fh.seek(ifd)
-                (n,) = struct.unpack(bo + "Q", fh.read(8))
-                entry, fmt = 20, bo + "HHQQ"
-            else:
-                return None
-            table = fh.read(entry * n)
-            for i in range(n):
-                tag, typ, count, offset = struct.unpack(fmt, table[i * entry:(i + 1) * entry])
-                if tag == _RPC_TAG and typ == 12 and count == 92:
-                    fh.seek(offset)
-                    values = struct.unpack(bo + "92d", fh.read(8 * 92))
-                    break
-            else:
-                return None
-    except (OSError, struct.error):
+        head = read_bytes(path, 16)
+        bo = {b"II": "<", b"MM": ">"}.get(head[:2])
+        if bo is None:
+            return None
+        (magic,) = struct.unpack(bo + "H", head[2:4])
+        if magic == 42:
+            (ifd,) = struct.unpack(bo + "I", head[4:8])
+            (n,) = struct.unpack(bo + "H", read_bytes(path, 2, ifd))
+            entry, fmt, first = 12, bo + "HHII", ifd + 2
+        elif magic == 43:
+            (ifd,) = struct.unpack(bo + "Q", head[8:16])
+            (n,) = struct.unpack(bo + "Q", read_bytes(path, 8, ifd))
+            entry, fmt, first = 20, bo + "HHQQ", ifd + 8
+        else:
+            return None
+        table = read_bytes(path, entry * n, first)
+        for i in range(n):
+            tag, typ, count, offset = struct.unpack(fmt, table[i * entry:(i + 1) * entry])
+            if tag == _RPC_TAG and typ == 12 and count == 92:
+                values = struct.unpack(bo + "92d", read_bytes(path, 8 * 92, offset))
+                break
+        else:
+            return None
+    except (GeoblockIOError, struct.error):
         return None
     items = {k: repr(v) for k, v in zip(_TAG_ORDER, values[:12], strict=True)}
     for j, key in enumerate(_POLY_KEYS):
@@ -276,42 +292,34 @@ def _parse_gdal(path: Path) -> Result | None:
 
 
 def _parse_rpc_txt(path: Path, text: str) -> Result:
-    md: dict[str, Any] = {}
-    coeffs: dict[str, dict[int, str]] = {k: {} for k in _POLY_KEYS}
+    kv: dict[str, str] = {}
+    lines: dict[str, int] = {}
     for line_no, line in enumerate(text.splitlines(), start=1):
         if ":" not in line:
             continue
         key, _, value = line.partition(":")
         key = key.strip().upper()
-        value = value.strip()
         m = re.fullmatch(r"(LINE|SAMP)_(NUM|DEN)_COEFF_(\d+)", key)
         if not (m or key in _POLY_KEYS or key in _SCALAR_KEYS or key in _OPTIONAL_KEYS):
             continue
-        if not value:
-            if key in _OPTIONAL_KEYS:
-                continue  # an optional field without a value is an absent one
-            raise ModelFormatError(f"{_src(path)}, line {line_no}: _RPC.TXT field {key} has no "
-                                   "value")
-        if m:
-            index = int(m[3])
-            if not 1 <= index <= 20:
-                raise ModelFormatError(f"{_src(path)}, line {line_no}: _RPC.TXT field {key}: "
-                                       "coefficient numbers run from 1 to 20")
-            coeffs[f"{m[1]}_{m[2]}_COEFF"][index] = value
-        else:
-            md[key] = value
-    for key, items in coeffs.items():
-        if key in md:
-            continue
-        missing = [i for i in range(1, 21) if i not in items]
+        if m and not 1 <= int(m[3]) <= 20:
+            raise ModelFormatError(f"{_src(path)}, line {line_no}: _RPC.TXT field {key}: "
+                                   "coefficient numbers run from 1 to 20")
+        kv[key], lines[key] = value, line_no
+    # a coefficient list is one key (LINE_NUM_COEFF: 20 numbers) or twenty (LINE_NUM_COEFF_1..20)
+    keys: dict[str, str | tuple[str, ...]] = {k: k for k in _SCALAR_KEYS + _OPTIONAL_KEYS}
+    for key in _POLY_KEYS:
+        keys[key] = key if key in kv else tuple(f"{key}_{i}" for i in range(1, 21))
+    for key in _POLY_KEYS:
+        missing = [k for k in keys[key] if k not in kv] if key not in kv else []
         if missing:
             raise ModelFormatError(
-                f"{_src(path)}: _RPC.TXT lacks {key}_{missing[0]}"
+                f"{_src(path)}: _RPC.TXT lacks {missing[0]}"
                 + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
             )
-        md[key] = " ".join(items[i].split()[0] for i in range(1, 21))
-    _require(md, _SCALAR_KEYS, path, "_RPC.TXT")
-    return Rpc00b.from_gdal(md, source=_src(path)), None, {"format": "rpc-txt"}
+    _require(kv, _SCALAR_KEYS, path, "_RPC.TXT")
+    fields = Fields(_src(path), kv, error=_field_error("_RPC.TXT", lines))
+    return _rpc_from_fields(fields, keys), None, {"format": "rpc-txt"}
 
 
 _RPB_MAP = {
@@ -331,26 +339,24 @@ def _parse_rpb(path: Path, text: str) -> Result:
     if m is None:
         raise ModelFormatError(f"{_src(path)}: RPB has no complete BEGIN_GROUP = IMAGE ... "
                                "END_GROUP = IMAGE block")
-    md: dict[str, Any] = {}
+    kv: dict[str, str] = {}  # the file's keys (lineOffset ...) -> value text
+    keys: dict[str, str] = {}  # GDAL key -> the file's key
     for key, value in _RPB_ITEM.findall(m[1]):
         gkey = _RPB_MAP.get(key.upper())
         if gkey is None:
             continue
         value = value.strip()
-        if value.startswith("("):
+        if value.startswith("("):  # a list: ( a, b, ... )
             value = " ".join(v.strip() for v in value[1:-1].split(",") if v.strip())
-        if not value:
-            if gkey in _OPTIONAL_KEYS:
-                continue  # an optional field without a value is an absent one
-            raise ModelFormatError(f"{_src(path)}: RPB field {key} has no value")
-        md[gkey] = value
-    _require(md, _SCALAR_KEYS + _POLY_KEYS,
+        kv[key], keys[gkey] = value, key
+    _require(keys, _SCALAR_KEYS + _POLY_KEYS,
              path, "RPB (DigitalGlobe keys lineOffset ... sampDenCoef)")
+    rpc = _rpc_from_fields(Fields(_src(path), kv, error=_field_error("RPB")), keys)
     extra: dict[str, Any] = {"format": "rpb"}
     for key, value in _RPB_ITEM.findall(text[: m.start()]):
         extra[{"satid": "satellite_id", "bandid": "band_id", "specid": "spec_id"}.get(
             key.lower(), key)] = value.strip().strip('"')
-    return Rpc00b.from_gdal(md, source=_src(path)), None, extra
+    return rpc, None, extra
 
 
 def _parse_ossim(path: Path, text: str) -> Result:
@@ -366,27 +372,21 @@ def _parse_ossim(path: Path, text: str) -> Result:
             prefix = key[: key.rfind("line_num_coeff")]
             break
     get = {k[len(prefix):]: v for k, v in kw.items() if k.startswith(prefix)}
-    fmt = get.get("polynomial_format", "B").strip().upper() or "B"
+    fields = Fields(_src(path), get, where=prefix, error=_field_error("OSSIM keyword list"))
+    fmt = (fields.string("polynomial_format", "B").strip().upper() or "B")
     if fmt not in ("A", "B"):
         raise ModelFormatError(f"{_src(path)}: OSSIM polynomial_format {fmt!r} is not A or B")
-    md: dict[str, Any] = {}
-    for key in _SCALAR_KEYS:
-        if key.lower() not in get:
-            raise ModelFormatError(f"{_src(path)}: OSSIM keyword list lacks {prefix}{key.lower()}")
-        md[key] = get[key.lower()]
+    keys: dict[str, str | tuple[str, ...]] = {k: k.lower() for k in _SCALAR_KEYS}
     for key in _POLY_KEYS:
-        values = []
-        for i in range(20):
-            name = f"{key.lower()}_{i:02d}"
+        names = tuple(f"{key.lower()}_{i:02d}" for i in range(20))
+        if fmt == "A":  # the B-order term j is the A-order term a with RPC00A_TO_B[a] == j
+            names = tuple(names[RPC00A_TO_B.index(j)] for j in range(20))
+        keys[key] = names
+    for key in keys.values():
+        for name in (key,) if isinstance(key, str) else key:
             if name not in get:
                 raise ModelFormatError(f"{_src(path)}: OSSIM keyword list lacks {prefix}{name}")
-            values.append(get[name])
-        if fmt == "A":
-            reordered = [""] * 20
-            for a_index, b_index in enumerate(RPC00A_TO_B):
-                reordered[b_index] = values[a_index]
-            values = reordered
-        md[key] = " ".join(values)
+    rpc = _rpc_from_fields(fields, keys)
     extra: dict[str, Any] = {"format": "ossim-kwl", "ossim_type": get.get("type"),
                              "polynomial_format": fmt}
     sensor = get.get("sensor") or get.get("support_data.sensorID")
@@ -396,7 +396,7 @@ def _parse_ossim(path: Path, text: str) -> Result:
     if "number_lines" in get and "number_samples" in get:
         shape = _image_size(path, get["number_lines"], get["number_samples"],
                             f"OSSIM {prefix}number_lines/{prefix}number_samples")
-    return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
+    return rpc, shape, extra
 
 
 _RPCM_KEYS = {
@@ -411,7 +411,7 @@ _RPCM_KEYS = {
 
 def _parse_json(path: Path) -> Result | None:
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(read_bytes(path).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError):
         return None
     if not isinstance(data, dict):
@@ -420,17 +420,20 @@ def _parse_json(path: Path) -> Result | None:
         return None  # geoblock's own model JSON: the core reader's
     block = data.get("rpc") if isinstance(data.get("rpc"), dict) else data
     upper = {str(k).upper(): v for k, v in block.items()}
+    keys: dict[str, str]
     if "row_offset" in block or "row_num" in block:
-        md = {g: block[k] for k, g in _RPCM_KEYS.items() if k in block}
-        _require(md, _SCALAR_KEYS + _POLY_KEYS, path, "rpcm RPC dictionary")
+        keys = {g: k for k, g in _RPCM_KEYS.items() if k in block}
+        _require(keys, _SCALAR_KEYS + _POLY_KEYS, path, "rpcm RPC dictionary")
+        fields = Fields(_src(path), block, error=_field_error("JSON", quote=True))
         fmt = "rpcm-json"
     elif "LINE_OFF" in upper and "LINE_NUM_COEFF" in upper:
-        md = upper
+        keys = {k: k for k in _SCALAR_KEYS + _POLY_KEYS + _OPTIONAL_KEYS if k in upper}
+        _require(keys, _SCALAR_KEYS + _POLY_KEYS, path, "GDAL RPC dictionary")
+        fields = Fields(_src(path), upper, error=_field_error("JSON", quote=True))
         fmt = "gdal-json"
     else:
         return None
-    _check_json_values(path, md, {g: k for k, g in _RPCM_KEYS.items()} if fmt == "rpcm-json"
-                       else {})
+    rpc = _rpc_from_fields(fields, keys)
     extra: dict[str, Any] = {"format": fmt}
     for key in ("img", "acquisition_date", "sun_elevation", "sun_azimuth", "min_alt",
                 "max_alt"):
@@ -439,36 +442,7 @@ def _parse_json(path: Path) -> Result | None:
     shape = None
     if isinstance(data.get("height"), int) and isinstance(data.get("width"), int):
         shape = _image_size(path, data["height"], data["width"], "JSON height/width")
-    return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
-
-
-def _check_json_values(path: Path, md: Mapping[str, Any], names: Mapping[str, str]) -> None:
-    """JSON values of the right type: a number (or numeric text) for a scalar, a list of
-    numbers (or whitespace-separated text) for a coefficient list; ``names`` maps the GDAL key
-    to the file's own key, for the message."""
-
-    def scalar(v: Any) -> bool:
-        if isinstance(v, bool):
-            return False
-        if isinstance(v, int):
-            return abs(v) <= 1e308  # float(v) would overflow
-        return isinstance(v, float | str)
-
-    for key, value in md.items():
-        if key in _POLY_KEYS:
-            ok = isinstance(value, str) or (isinstance(value, list)
-                                            and all(scalar(v) for v in value))
-            want = "a list of 20 numbers"
-        elif key in _SCALAR_KEYS or key in _OPTIONAL_KEYS:
-            ok = scalar(value)
-            want = "a number"
-        else:
-            continue
-        if not ok:
-            raise ModelFormatError(
-                f"{_src(path)}: JSON field {names.get(key, key)!r} must be {want}, got "
-                f"{json.dumps(value)[:80]}"
-            )
+    return rpc, shape, extra
 
 
 # ---------------------------------------------------------------------------------- XML
@@ -482,6 +456,8 @@ def _parse_vrt(path: Path, root: ET.Element) -> Result:
         return rpc, shape, {**extra, "format": "gdal-vrt"}
     md = {m.get("key", "").upper(): (m.text or "") for m in md_nodes[0].findall("MDI")}
     _require(md, _SCALAR_KEYS + _POLY_KEYS, path, "VRT RPC metadata domain")
+    keys = {k: k for k in _SCALAR_KEYS + _POLY_KEYS + _OPTIONAL_KEYS if k in md}
+    rpc = _rpc_from_fields(Fields(_src(path), md, error=_field_error("VRT RPC metadata")), keys)
     shape = None
     if root.get("rasterYSize") is not None or root.get("rasterXSize") is not None:
         shape = _image_size(path, root.get("rasterYSize"), root.get("rasterXSize"),
@@ -492,7 +468,7 @@ def _parse_vrt(path: Path, root: ET.Element) -> Result:
             for mdi in m.findall("MDI"):
                 if mdi.get("key", "").upper() in ("SATID", "IMAGE_1.SATID") and mdi.text:
                     extra["satellite_id"] = mdi.text.strip().strip('"')
-    return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
+    return rpc, shape, extra
 
 
 def _parse_isd(path: Path, root: ET.Element) -> Result:
@@ -502,16 +478,19 @@ def _parse_isd(path: Path, root: ET.Element) -> Result:
             f"{_src(path)}: DigitalGlobe ISD XML without an <RPB><IMAGE> section: no RPC "
             "coefficients in this file (use its physical model or the product's .RPB)"
         )
-    md: dict[str, Any] = {}
+    kv: dict[str, str] = {}  # the ISD's tags -> value text (a list's items joined)
+    keys: dict[str, str] = {}  # GDAL key -> ISD tag
     for child in image:
         gkey = _RPB_MAP.get(child.tag.upper().removesuffix("LIST"))
         if gkey is None:
             continue
         if len(child):
-            md[gkey] = " ".join((c.text or "").strip() for c in child)
+            kv[child.tag] = " ".join((c.text or "").strip() for c in child)
         else:
-            md[gkey] = (child.text or "").strip()
-    _require(md, _SCALAR_KEYS + _POLY_KEYS, path, "ISD <RPB><IMAGE>")
+            kv[child.tag] = (child.text or "").strip()
+        keys[gkey] = child.tag
+    _require(keys, _SCALAR_KEYS + _POLY_KEYS, path, "ISD <RPB><IMAGE>")
+    rpc = _rpc_from_fields(Fields(_src(path), kv, error=_field_error("ISD <RPB><IMAGE>")), keys)
     extra: dict[str, Any] = {"format": "dg-isd"}
     satid = root.findtext("RPB/SATID") or root.findtext("IMD/IMAGE/SATID")
     if satid:
@@ -520,7 +499,7 @@ def _parse_isd(path: Path, root: ET.Element) -> Result:
     rows, cols = root.findtext("IMD/NUMROWS"), root.findtext("IMD/NUMCOLUMNS")
     if rows is not None or cols is not None:
         shape = _image_size(path, rows, cols, "ISD <IMD><NUMROWS>/<NUMCOLUMNS>")
-    return Rpc00b.from_gdal(md, source=_src(path)), shape, extra
+    return rpc, shape, extra
 
 
 def _dimap_version(root: ET.Element) -> float | None:
@@ -554,7 +533,21 @@ def _is_pneo(root: ET.Element, version: float | None) -> bool:
     return (version is not None and version >= 3.0) or profile.startswith("PNEO")
 
 
-def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None:
+def _validity_box(doc: XmlFields, valid: ET.Element, label: str) -> dict[str, float]:
+    """MIN/MAX_LONG/LAT from ``RFM_Validity/Inverse_Model_Validity_Domain`` (those given)."""
+    domain = doc.find("Inverse_Model_Validity_Domain", valid)
+    if domain is None:
+        return {}
+    label += "Inverse_Model_Validity_Domain/"
+    return {key: doc.number(tag, domain, label)
+            for tag, key in (("FIRST_LON", "MIN_LONG"), ("LAST_LON", "MAX_LONG"),
+                             ("FIRST_LAT", "MIN_LAT"), ("LAST_LAT", "MAX_LAT"))
+            if doc.optional_text(tag, domain) is not None}
+
+
+def _parse_dimap(path: Path, doc: XmlFields, _depth: int = 0) -> Result | None:
+    root = doc.root
+    doc = XmlFields(doc.source, root, _field_error("DIMAP"))
     version = _dimap_version(root)
     rfm = root.find(".//Rational_Function_Model")
     gl = root.find(".//Rational_Function_Model/Global_RFM")
@@ -586,22 +579,16 @@ def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None
     valid = gl.find("RFM_Validity")
     if valid is None:
         raise ModelFormatError(f"{_src(path)}: {where} has no RFM_Validity (offsets, scales)")
-    md: dict[str, Any] = {k: _xml_text(valid, k, path, f"{where}/RFM_Validity")
-                          for k in _SCALAR_KEYS}
+    label = "Global_RFM/RFM_Validity/"
+    md: dict[str, Any] = {k: doc.number(k, valid, label) for k in _SCALAR_KEYS}
     inv_tag = "GroundtoImage_Values" if pneo else "Inverse_Model"
     inv = gl.find(inv_tag)
     if inv is None:
         raise ModelFormatError(f"{_src(path)}: {where} has no {inv_tag} (ground -> image)")
     for key in _POLY_KEYS:
-        md[key] = " ".join(
-            _xml_text(inv, f"{key}_{i}", path, f"{where}/{inv_tag}") for i in range(1, 21))
-    domain = valid.find("Inverse_Model_Validity_Domain")
-    if domain is not None:
-        for tag, key in (("FIRST_LON", "MIN_LONG"), ("LAST_LON", "MAX_LONG"),
-                         ("FIRST_LAT", "MIN_LAT"), ("LAST_LAT", "MAX_LAT")):
-            text = domain.findtext(tag)
-            if text:
-                md[key] = text.strip()
+        md[key] = np.array([doc.number(f"{key}_{i}", inv, f"Global_RFM/{inv_tag}/")
+                            for i in range(1, 21)])
+    md.update(_validity_box(doc, valid, label))
     shift = 0.0 if pneo else 1.0
     rpc = Rpc00b.from_gdal(md, source=_src(path))
     if shift:
@@ -614,13 +601,8 @@ def _parse_dimap(path: Path, root: ET.Element, _depth: int = 0) -> Result | None
     }
     rpc = _check_box(rpc, extra)
     for tag in ("ERR_BIAS_ROW", "ERR_BIAS_COL"):
-        text = inv.findtext(tag)
-        if text and text.strip():
-            try:
-                extra[tag.lower()] = float(text)
-            except ValueError:
-                raise ModelFormatError(f"{_src(path)}: {where}/{inv_tag}/{tag} is not a number: "
-                                       f"{text.strip()!r}") from None
+        if doc.optional_text(tag, inv) is not None:
+            extra[tag.lower()] = doc.number(tag, inv, f"Global_RFM/{inv_tag}/")
     mission = root.findtext(".//Source_Identification//MISSION")
     if mission:
         idx = root.findtext(".//Source_Identification//MISSION_INDEX") or ""
@@ -655,7 +637,9 @@ def _check_box(rpc: Rpc00b, extra: dict[str, Any]) -> Rpc00b:
     return rpc.replace(min_long=None, max_long=None, min_lat=None, max_lat=None)
 
 
-def _parse_phr_dimap(path: Path, root: ET.Element) -> Result:
+def _parse_phr_dimap(path: Path, doc: XmlFields) -> Result:
+    root = doc.root
+    doc = XmlFields(doc.source, root, _field_error("PHR_Dimap_Document"))
     gl = root.find(".//Rational_Sensor_Model/Global_RFM")
     if gl is None:
         gl = root.find(".//Global_RFM")
@@ -666,30 +650,23 @@ def _parse_phr_dimap(path: Path, root: ET.Element) -> Result:
     valid = gl.find("RFM_Validity")
     if valid is None:
         raise ModelFormatError(f"{_src(path)}: {where} has no RFM_Validity (offsets, scales)")
+    label = "Global_RFM/RFM_Validity/"
     md: dict[str, Any] = {}
     for axis, off_key, scale_key in (("Lon", "LONG_OFF", "LONG_SCALE"),
                                      ("Lat", "LAT_OFF", "LAT_SCALE"),
                                      ("Alt", "HEIGHT_OFF", "HEIGHT_SCALE"),
                                      ("Col", "SAMP_OFF", "SAMP_SCALE"),
                                      ("Row", "LINE_OFF", "LINE_SCALE")):
-        node = valid.find(axis)
-        md[scale_key] = _xml_text(node, "A", path, f"{where}/RFM_Validity/{axis}")
-        md[off_key] = _xml_text(node, "B", path, f"{where}/RFM_Validity/{axis}")
-    inv = gl.find("Inverse_Model")
+        node = doc.node(axis, valid, label)
+        md[scale_key] = doc.number("A", node, f"{label}{axis}/")
+        md[off_key] = doc.number("B", node, f"{label}{axis}/")
+    inv = doc.node("Inverse_Model", gl, "Global_RFM/")
     for tag, prefix in (("F_ROW", "LINE"), ("F_COL", "SAMP")):
-        values = _xml_text(inv, tag, path, f"{where}/Inverse_Model").split()
-        if len(values) != 40:
-            raise ModelFormatError(f"{_src(path)}: {where}/Inverse_Model/{tag} must hold 40 "
-                                   f"numbers (20 numerator + 20 denominator), got {len(values)}")
-        md[f"{prefix}_NUM_COEFF"] = " ".join(values[:20])
-        md[f"{prefix}_DEN_COEFF"] = " ".join(values[20:])
-    domain = valid.find("Inverse_Model_Validity_Domain")
-    if domain is not None:
-        for tag, key in (("FIRST_LON", "MIN_LONG"), ("LAST_LON", "MAX_LONG"),
-                         ("FIRST_LAT", "MIN_LAT"), ("LAST_LAT", "MAX_LAT")):
-            text = domain.findtext(tag)
-            if text:
-                md[key] = text.strip()
+        # 20 numerator then 20 denominator coefficients
+        values = doc.numbers(tag, inv, "Global_RFM/Inverse_Model/", count=40)
+        md[f"{prefix}_NUM_COEFF"] = values[:20]
+        md[f"{prefix}_DEN_COEFF"] = values[20:]
+    md.update(_validity_box(doc, valid, label))
     rpc = Rpc00b.from_gdal(md, source=_src(path))
     rpc = rpc.replace(line_off=rpc.line_off - 1.0, samp_off=rpc.samp_off - 1.0)
     extra = {"format": "dimap-phr", "offset_shift": -1.0, "profile": _dimap_profile(root)}
@@ -699,21 +676,21 @@ def _parse_phr_dimap(path: Path, root: ET.Element) -> Result:
 
 def _read_xml_file(path: Path, _depth: int = 0) -> Result | None:
     try:
-        root = _strip_namespaces(ET.parse(path).getroot())
-    except (ET.ParseError, LookupError, UnicodeError, ValueError) as exc:
-        # LookupError: an unknown encoding in the XML declaration
+        doc = read_xml(path, _xml_error, strip_namespaces=True)
+    except ModelFormatError:  # not well-formed (or an unknown declared encoding)
         if _name_says_rpc(path):
-            raise ModelFormatError(f"{_src(path)}: is not well-formed XML ({exc})") from None
+            raise
         return None
+    root = doc.root
     tag = root.tag
     if tag == "VRTDataset":
         return _parse_vrt(path, root)
     if tag.lower() == "isd":
         return _parse_isd(path, root)
     if tag == "PHR_Dimap_Document":
-        return _parse_phr_dimap(path, root)
+        return _parse_phr_dimap(path, doc)
     if tag == "Dimap_Document" or root.find("Metadata_Identification") is not None:
-        return _parse_dimap(path, root, _depth)
+        return _parse_dimap(path, doc, _depth)
     if _name_says_rpc(path):
         raise ModelFormatError(
             f"{_src(path)}: XML root <{tag}> is none of the RPC containers geoblock reads "
@@ -774,7 +751,7 @@ class ReaderOptionError(ModelFormatError, TypeError):
 
 
 def _text(path: Path) -> str:
-    return _decode(path.read_bytes())
+    return decode_text(read_bytes(path))
 
 
 def _read(path: Path, options: Mapping[str, Any]) -> Result | None:

@@ -9,7 +9,8 @@ The model, exactly as published (Chen & Lee 1993, PE&RS 59(5), eqs. 1-7; Teo et 
 * **Sampling time (eq. 6).** ``t`` is relative to the first scan line: row ``r`` (geoblock's
   pixel-centre convention, row 0 the first line) is sampled at ``t = r * line_period``; the
   paper's "Line No." equals geoblock's ``row``.
-* **Collinearity (eq. 2)** in a local Cartesian work frame (:class:`WorkFrame`)::
+* **Collinearity (eq. 2)** in a local Cartesian work frame
+  (:class:`geoblock.coords.LocalFrame`, ``X`` along the azimuth of the ground track)::
 
       x      = -f (m11 dX + m12 dY + m13 dZ) / (m31 dX + m32 dY + m33 dZ)
       Sy * y = -f (m21 dX + m22 dY + m23 dZ) / (m31 dX + m32 dY + m33 dZ)
@@ -46,8 +47,8 @@ Two parameterisations, both reached through the sensor-model protocol's
 
 from __future__ import annotations
 
-import functools
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Self
@@ -55,11 +56,15 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from geoblock import coords
-from geoblock._array import broadcast_float64
-from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
-from geoblock.models import SensorModelBase
+from geoblock.errors import (
+    GeoblockDeprecationWarning,
+    ModelFormatError,
+    ParameterSetError,
+    SerializationError,
+)
+from geoblock.models import SensorModelBase, broadcast_float64
 from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
-from geoblock.typing import ArrayLike, Float64Array, Status
+from geoblock.typing import ArrayLike, Float64Array, GroundCoords, Status
 
 __all__ = [
     "COEFFICIENT_NAMES",
@@ -70,7 +75,6 @@ __all__ = [
     "TABLE1_COEFFICIENTS",
     "ChenLeeModel",
     "Interior",
-    "WorkFrame",
     "rotation_matrix",
 ]
 
@@ -156,87 +160,52 @@ SPOT1A_INTERIOR = Interior()
 """SPOT 1A panchromatic: 13 um CCD, f = 1082 mm, 1.5 ms per line (Chen & Lee 1993)."""
 
 
-@dataclass(frozen=True)
-class WorkFrame:
-    """A local Cartesian work frame: a tangent plane at an origin, axes turned by an azimuth.
-
-    ``Z`` is the ellipsoid normal (up) at the origin, ``X`` the horizontal direction at
-    ``azimuth_deg`` (clockwise from north) and ``Y = Z x X`` (to the left of ``X``). With
-    ``azimuth_deg`` the ground-track heading, ``X`` is along track and ``Z`` the local
-    vertical: the LVLH-like work frame of Teo et al. (2010), whose origin is the GCP centroid;
-    ``azimuth_deg = 90`` gives plain east/north/up (:class:`geoblock.coords.LocalFrame`).
-
-    Parameters
-    ----------
-    lon0, lat0 : float
-        Origin, degrees.
-    h0 : float
-        Origin height above the ellipsoid, metres.
-    azimuth_deg : float
-        Direction of ``X``, degrees clockwise from north.
-    """
-
-    lon0: float
-    lat0: float
-    h0: float = 0.0
-    azimuth_deg: float = 90.0
+class _WorkFrame(coords.LocalFrame):
+    """Deprecated: :class:`geoblock.coords.LocalFrame` with the 0.1 ``WorkFrame`` methods,
+    whose ECEF and work-frame points are stacked on the last axis, (..., 3)."""
 
     def __post_init__(self) -> None:
-        for name in ("lon0", "lat0", "h0", "azimuth_deg"):
-            value = float(getattr(self, name))
-            if not math.isfinite(value):
-                raise ModelFormatError(f"WorkFrame: {name} must be finite, got {value!r}")
-            object.__setattr__(self, name, value)
-        if not -90.0 <= self.lat0 <= 90.0:
-            raise ModelFormatError(f"WorkFrame: lat0 must be within [-90, 90], got {self.lat0}")
+        warnings.warn("geoblock_spot.chenlee.WorkFrame is deprecated: use "
+                      "geoblock.coords.LocalFrame (same arguments; its from_geodetic returns "
+                      "three arrays, from_ecef_xyz/to_ecef_xyz take (..., 3))",
+                      GeoblockDeprecationWarning, stacklevel=3)
+        super().__post_init__()
 
-    @classmethod
-    def centred_on(cls, lon: ArrayLike, lat: ArrayLike, h: ArrayLike,
-                   azimuth_deg: float = 90.0) -> WorkFrame:
-        """The frame at the centroid of the finite points given (e.g. the GCPs, Teo et al.)."""
-        local = coords.LocalFrame.centred_on(lon, lat, h)
-        return cls(local.lon0, local.lat0, local.h0, azimuth_deg)
-
-    @functools.cached_property
+    @property
     def local(self) -> coords.LocalFrame:
         """The east/north/up frame at the same origin."""
         return coords.LocalFrame(self.lon0, self.lat0, self.h0)
 
-    @functools.cached_property
-    def rotation(self) -> Float64Array:
-        """(3, 3) ECEF -> work rotation: rows are the ``X, Y, Z`` unit vectors in ECEF."""
-        a = math.radians(self.azimuth_deg)
-        sa, ca = math.sin(a), math.cos(a)
-        enu_to_work = np.array([[sa, ca, 0.0], [-ca, sa, 0.0], [0.0, 0.0, 1.0]])
-        out = enu_to_work @ self.local.rotation
-        out.flags.writeable = False
-        return out
-
-    @property
-    def origin_ecef(self) -> Float64Array:
-        """(3,) ECEF coordinates of the origin, metres."""
-        return self.local.origin_ecef
-
-    def from_ecef(self, xyz: np.ndarray) -> Float64Array:
+    def from_ecef(self, xyz: ArrayLike) -> Float64Array:  # type: ignore[override]  # 0.1 API
         """(..., 3) ECEF metres -> (..., 3) work-frame metres."""
-        return (np.asarray(xyz, dtype=np.float64) - self.origin_ecef) @ self.rotation.T
+        return self.from_ecef_xyz(xyz)
 
-    def to_ecef(self, xyz: np.ndarray) -> Float64Array:
+    def to_ecef(self, xyz: ArrayLike) -> Float64Array:  # type: ignore[override]  # 0.1 API
         """(..., 3) work-frame metres -> (..., 3) ECEF metres."""
-        return np.asarray(xyz, dtype=np.float64) @ self.rotation + self.origin_ecef
+        return self.to_ecef_xyz(xyz)
 
-    def from_geodetic(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+    def from_geodetic(  # type: ignore[override]  # 0.1 API
+        self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+    ) -> Float64Array:
         """Geodetic ``(lon, lat, h)`` -> (..., 3) work-frame metres."""
-        return self.from_ecef(np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1))
+        return self.from_ecef_xyz(np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1))
 
-    def to_geodetic(self, xyz: np.ndarray):
+    def to_geodetic(self, xyz: ArrayLike) -> GroundCoords:  # type: ignore[override]  # 0.1 API
         """(..., 3) work-frame metres -> :class:`~geoblock.typing.GroundCoords`."""
-        p = self.to_ecef(xyz)
+        p = self.to_ecef_xyz(xyz)
         return coords.ecef_to_geodetic(p[..., 0], p[..., 1], p[..., 2])
 
-    def to_dict(self) -> dict[str, float]:
-        return {"lon0": self.lon0, "lat0": self.lat0, "h0": self.h0,
-                "azimuth_deg": self.azimuth_deg}
+
+def __getattr__(name: str) -> Any:
+    if name == "WorkFrame":  # deprecated in 0.2: geoblock.coords.LocalFrame has its azimuth
+        return _WorkFrame
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _work_points(frame: coords.LocalFrame, lon: ArrayLike, lat: ArrayLike,
+                 h: ArrayLike) -> Float64Array:
+    """Geodetic points -> work-frame points stacked on the last axis, (*S, 3) metres."""
+    return frame.from_ecef_xyz(np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1))
 
 
 # ==================================================================================== algebra
@@ -318,8 +287,9 @@ class ChenLeeModel(SensorModelBase):
     coefficients : array_like, (19,)
         Nominal coefficients in :data:`COEFFICIENT_NAMES` order (metres, seconds, radians);
         e.g. :data:`TABLE1_COEFFICIENTS`.
-    frame : WorkFrame
-        The local work frame of the orbit polynomials and of the ground coordinates.
+    frame : geoblock.coords.LocalFrame
+        The local work frame of the orbit polynomials and of the ground coordinates (``X``
+        usually along track: ``azimuth_deg`` the ground-track heading).
     shape : (int, int)
         ``(rows, cols)``; ``cols`` is the ``N`` of eq. 1. SPOT 1A: 6000 x 6000.
     interior : Interior
@@ -369,7 +339,7 @@ class ChenLeeModel(SensorModelBase):
     def __init__(
         self,
         coefficients: ArrayLike,
-        frame: WorkFrame,
+        frame: coords.LocalFrame,
         *,
         shape: tuple[int, int] = (6000, 6000),
         interior: Interior = SPOT1A_INTERIOR,
@@ -387,8 +357,11 @@ class ChenLeeModel(SensorModelBase):
                 f"ChenLeeModel: coefficients must be 19 finite values {list(COEFFICIENT_NAMES)}, "
                 f"got shape {nominal.shape}"
             )
-        if not isinstance(frame, WorkFrame):
-            raise ModelFormatError(f"ChenLeeModel: frame must be a WorkFrame, got {frame!r}")
+        if not isinstance(frame, coords.LocalFrame):
+            raise ModelFormatError(
+                f"ChenLeeModel: frame must be a geoblock.coords.LocalFrame, got {frame!r}")
+        if type(frame) is not coords.LocalFrame:  # a subclass (the deprecated WorkFrame)
+            frame = coords.LocalFrame(frame.lon0, frame.lat0, frame.h0, frame.azimuth_deg)
         if not isinstance(interior, Interior):
             raise ModelFormatError(f"ChenLeeModel: interior must be an Interior, got {interior!r}")
         try:
@@ -442,7 +415,7 @@ class ChenLeeModel(SensorModelBase):
 
     # ------------------------------------------------------------------ construction helpers
     @classmethod
-    def table1(cls, frame: WorkFrame | None = None, **kwargs: Any) -> Self:
+    def table1(cls, frame: coords.LocalFrame | None = None, **kwargs: Any) -> Self:
         """Chen & Lee's Table 1 orientation on a SPOT 1A 6000 x 6000 scene.
 
         The paper does not give its local frame's origin; the default puts the origin at
@@ -451,7 +424,7 @@ class ChenLeeModel(SensorModelBase):
         central west Taiwan around (120.75 E, 24.40 N), where the paper's scene lies.
         """
         if frame is None:
-            frame = WorkFrame(121.91, 24.62, 0.0, 180.0)
+            frame = coords.LocalFrame(121.91, 24.62, 0.0, 180.0)
         return cls(TABLE1_COEFFICIENTS, frame, **kwargs)
 
     @classmethod
@@ -494,7 +467,8 @@ class ChenLeeModel(SensorModelBase):
         return self._nominal
 
     @property
-    def frame(self) -> WorkFrame:
+    def frame(self) -> coords.LocalFrame:
+        """The work frame of the orbit polynomials (:class:`geoblock.coords.LocalFrame`)."""
         return self._frame
 
     @property
@@ -663,7 +637,7 @@ class ChenLeeModel(SensorModelBase):
             parameter_set = data["parameter_set"]
             return cls(
                 data["coefficients"] if parameter_set != "coefficients" else params.values,
-                WorkFrame(**data["frame"]),
+                coords.LocalFrame.from_dict(data["frame"]),
                 shape=tuple(data["shape"]),
                 interior=Interior(**data["interior"]),
                 height_range=tuple(data["height_range"]),
@@ -754,7 +728,7 @@ class ChenLeeModel(SensorModelBase):
         return row, col, u3
 
     def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
-        p = self._frame.from_geodetic(lon, lat, h)
+        p = _work_points(self._frame, lon, lat, h)
         t, status = self._solve_time(p)
         ok = status == Status.CONVERGED
         t = np.where(ok, t, 0.0)
@@ -785,7 +759,7 @@ class ChenLeeModel(SensorModelBase):
         image = np.stack([np.zeros(n), self._sy * y, np.full(n, -f)], axis=-1)
         d_work = np.einsum("nji,nj->ni", m, image)  # M^T u
         d_work /= np.linalg.norm(d_work, axis=-1, keepdims=True)
-        o = self._frame.to_ecef(pos)
+        o = self._frame.to_ecef_xyz(pos)
         d = d_work @ self._frame.rotation
         todo = np.flatnonzero(inside)
         lon_i, lat_i, s_i, status_i = coords.intersect_height(
@@ -796,7 +770,7 @@ class ChenLeeModel(SensorModelBase):
         s[todo] = s_i
         ok = status == Status.CONVERGED
         p = np.full((n, 3), np.nan)
-        p[ok] = self._frame.from_ecef(o[ok] + s[ok, None] * d[ok])
+        p[ok] = self._frame.from_ecef_xyz(o[ok] + s[ok, None] * d[ok])
         return p, status, lon, lat
 
     def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
@@ -815,7 +789,7 @@ class ChenLeeModel(SensorModelBase):
             row, col, status = self.ground_to_image(lon[ok], lat[ok], h[ok])
             good = status == Status.CONVERGED
             idx = np.flatnonzero(ok)[good]
-            p = self._frame.from_geodetic(lon[idx], lat[idx], h[idx])
+            p = _work_points(self._frame, lon[idx], lat[idx], h[idx])
             t = row[good] * self._interior.line_period_s
             out[idx] = self._jacobian_kernel(p, t, ground)
         return out.reshape(shape + (2, width))

@@ -74,7 +74,9 @@ from pathlib import Path
 import numpy as np
 
 from geoblock.errors import GeoblockError, GeoblockIOError, ModelFormatError, ParameterSetError
+from geoblock.io.metadata import XmlFields, parse_utc, read_bytes, read_xml
 from geoblock.models.parameters import ParameterSet
+from geoblock.pixels import PIXEL_CENTRE
 
 __all__ = [
     "DimapFormatError",
@@ -242,16 +244,9 @@ def check_unit_quaternions(path: str | os.PathLike[str], field: str, q: np.ndarr
 
 def parse_time(path: str | os.PathLike[str], field: str, text: str) -> np.datetime64:
     """``text`` (ISO-8601 UTC, optional ``Z``) as a ``datetime64[us]``, refused unless its
-    year is within :data:`YEAR_RANGE` (parsed in microseconds: nanoseconds overflow silently
-    outside 1678-2262)."""
-    try:
-        value = np.datetime64(text.rstrip("Z"), "us")
-    except (ValueError, OverflowError):
-        raise DimapFormatError(path, field, f"{text!r} is not an ISO-8601 time") from None
-    if not YEAR_RANGE[0] <= value.astype("datetime64[Y]").astype(int) + 1970 <= YEAR_RANGE[1]:
-        raise DimapFormatError(path, field, f"{text!r} is not a plausible acquisition time "
-                                            f"(years {YEAR_RANGE[0]}-{YEAR_RANGE[1]})")
-    return value
+    year is within :data:`YEAR_RANGE` (:func:`geoblock.io.metadata.parse_utc`)."""
+    return parse_utc(text, lambda f, problem: DimapFormatError(path, f, problem), field,
+                     years=YEAR_RANGE)
 
 
 #: ``|value|`` limits of a stated ground point's fields
@@ -614,10 +609,8 @@ def is_spot_dimap(path: str | os.PathLike[str]) -> bool:
     1.x and whose ``METADATA_PROFILE`` starts with ``SPOT``.
     """
     try:
-        file = _metadata_file(path)
-        with open(file, "rb") as fh:
-            head = fh.read(8192).decode("utf-8", "replace")
-    except (OSError, GeoblockIOError):
+        head = read_bytes(_metadata_file(path), 8192).decode("utf-8", "replace")
+    except (OSError, GeoblockIOError):  # GeoblockIOError: missing, a directory without one
         return False
     if "<Dimap_Document" not in head:
         return False
@@ -631,95 +624,30 @@ def is_spot_dimap(path: str | os.PathLike[str]) -> bool:
 
 
 # ---------------------------------------------------------------------- parsing helpers
-class _Doc:
-    """An ElementTree root with field-naming accessors."""
-
-    def __init__(self, path: Path, root: ET.Element):
-        self.path = path
-        self.root = root
-
-    def error(self, field: str, problem: str) -> DimapFormatError:
-        return DimapFormatError(self.path, field, problem)
-
-    def text(self, elem: ET.Element, sub: str, field: str) -> str:
-        found = elem.find(sub)
-        if found is None or found.text is None or not found.text.strip():
-            raise self.error(field, "missing or empty (truncated metadata?)")
-        return found.text.strip()
-
-    def opt_text(self, sub: str) -> str | None:
-        found = self.root.find(sub)
-        if found is None or found.text is None or not found.text.strip():
-            return None
-        return found.text.strip()
-
-    def float(self, elem: ET.Element, sub: str, field: str) -> float:
-        text = self.text(elem, sub, field)
-        try:
-            value = float(text)
-        except ValueError:
-            raise self.error(field, f"{text!r} is not a number") from None
-        if not np.isfinite(value):
-            raise self.error(field, f"{text!r} is not finite")
-        return value
-
-    def int(self, elem: ET.Element, sub: str, field: str) -> int:
-        value = self.float(elem, sub, field)
-        if value != int(value):
-            raise self.error(field, f"{value!r} is not an integer")
-        return int(value)
-
-    def time(self, elem: ET.Element, sub: str, field: str) -> np.datetime64:
-        return parse_time(self.path, field, self.text(elem, sub, field))
-
-    def all(self, sub: str, field: str, minimum: int) -> list[ET.Element]:
-        found = self.root.findall(sub)
-        if len(found) < minimum:
-            raise self.error(field, f"{len(found)} element(s), at least {minimum} needed "
-                             "(truncated metadata?)")
-        return found
-
-    def vectors(self, items: list[ET.Element], sub: str, field: str) -> np.ndarray:
-        return np.array(
-            [[self.float(e, f"{sub}/{c}", f"{field}/{sub}/{c}") for c in "XYZ"] for e in items]
-        ).reshape(-1, 3)
-
-    def size(self, elem: ET.Element, sub: str, field: str, minimum: int = 1) -> int:
-        value = self.int(elem, sub, field)
-        if not minimum <= value <= MAX_IMAGE_SIZE:
-            raise self.error(field, f"{value} is not a plausible image size (a whole number "
-                             f"from {minimum} to {MAX_IMAGE_SIZE})")
-        return value
-
-    def bounded(self, values: np.ndarray, limit: float, field: str, what: str) -> None:
-        """Refuse ``|values| >= limit`` (or NaN) in the 1-D ``values``."""
-        bad = np.flatnonzero(~(np.abs(values) < limit))
-        if bad.size:
-            i = int(bad[0])
-            raise self.error(field, f"{what} {float(values[i])!r} (sample {i + 1}) is not "
-                             f"plausible: |{what}| must be < {limit:g}")
-
-    def increasing(self, t: np.ndarray, field: str) -> None:
-        if t.size > 1 and not np.all(np.diff(t) > 0):
-            i = int(np.argmin(np.diff(t)))
-            raise self.error(field, f"times are not strictly increasing (sample {i + 2} of "
-                             f"{t.size} is not after sample {i + 1})")
-
-
-def _angle_samples(doc: _Doc, items: list[ET.Element], field: str, seconds, time_tag="TIME"):
+def _angle_samples(doc: XmlFields, field: str, seconds: Callable[[np.datetime64], float],
+                   time_tag: str = "TIME") -> AttitudeSamples | None:
+    """The yaw/pitch/roll samples at ``field`` (None when there are none)."""
+    items = doc.nodes(field)
     if not items:
         return None
-    t = np.array([seconds(doc.time(e, time_tag, f"{field}/{time_tag}")) for e in items])
+    t = np.array([seconds(doc.time(time_tag, e, field + "/", years=YEAR_RANGE)) for e in items])
     ang = np.array(
-        [[doc.float(e, k, f"{field}/{k}") for k in ("YAW", "PITCH", "ROLL")] for e in items]
+        [[doc.number(k, e, field + "/") for k in ("YAW", "PITCH", "ROLL")] for e in items]
     ).reshape(-1, 3)
     limit, what = ((MAX_ANGULAR_SPEED_RAD_S, "angular speed (rad/s)") if field == _SPEEDS
                    else (MAX_ATTITUDE_ANGLE_RAD, "angle (rad)"))
     for k, name in enumerate(("YAW", "PITCH", "ROLL")):
         doc.bounded(ang[:, k], limit, f"{field}/{name}", what)
     oor = np.array([(e.findtext("OUT_OF_RANGE") or "N").strip().upper() == "Y" for e in items])
-    doc.increasing(t, field)
+    doc.increasing(t, field, "times")
     return AttitudeSamples(t, ang, oor)
+
+
+def _vectors(doc: XmlFields, items: list[ET.Element], sub: str, field: str) -> np.ndarray:
+    """(n, 3) the ``sub/X``, ``sub/Y``, ``sub/Z`` numbers of each element of ``items``."""
+    return np.array(
+        [[doc.number(f"{sub}/{c}", e, field + "/") for c in "XYZ"] for e in items]
+    ).reshape(-1, 3)
 
 
 def _position_derivative(t: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -761,61 +689,55 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
         metadata; the message names the file and the DIMAP field.
     """
     file = _metadata_file(path)
-    try:
-        root = ET.parse(file).getroot()
-    except (ET.ParseError, LookupError, ValueError) as exc:  # LookupError: unknown encoding
-        raise DimapFormatError(file, "(document)", f"not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise GeoblockIOError(f"{str(file)!r}: cannot read ({exc})") from exc
-    doc = _Doc(file, root)
+    doc = read_xml(file, DimapFormatError)
+    root = doc.root
     if root.tag != "Dimap_Document":
         raise doc.error("(root)", f"root element is <{root.tag}>, not <Dimap_Document>")
-    fmt = root.find("Metadata_Id/METADATA_FORMAT")
+    fmt = doc.find("Metadata_Id/METADATA_FORMAT")
     version = "" if fmt is None else fmt.get("version", "")
     if fmt is None or (fmt.text or "").strip() != "DIMAP" or not version.startswith("1."):
         raise doc.error("Metadata_Id/METADATA_FORMAT",
                         f"not DIMAP version 1.x (got version {version!r}); SPOT 6/7 DIMAP v2 "
                         "physical metadata is not read by this reader")
-    profile = doc.opt_text("Metadata_Id/METADATA_PROFILE") or ""
-    level = doc.opt_text("Data_Processing/PROCESSING_LEVEL") or ""
+    profile = doc.optional_text("Metadata_Id/METADATA_PROFILE") or ""
+    level = doc.optional_text("Data_Processing/PROCESSING_LEVEL") or ""
     if not profile.upper().startswith("SPOT"):
         raise doc.error("Metadata_Id/METADATA_PROFILE", f"{profile!r} is not a SPOT profile")
     if level and level.upper() != "1A":
         raise doc.error("Data_Processing/PROCESSING_LEVEL",
                         f"level {level!r}: only level 1A (raw geometry) has a line-of-sight model")
-    mission_name = doc.opt_text(_SOURCE + "/MISSION")
+    mission_name = doc.optional_text(_SOURCE + "/MISSION")
     if mission_name is not None and mission_name.upper() != "SPOT":
         raise doc.error(_SOURCE + "/MISSION", f"{mission_name!r} is not SPOT")
-    mission = doc.int(root, _SOURCE + "/MISSION_INDEX", _SOURCE + "/MISSION_INDEX")
+    mission = doc.integer(_SOURCE + "/MISSION_INDEX")
     if mission not in _MISSION_ACCURACY_M:
         raise doc.error(_SOURCE + "/MISSION_INDEX", f"SPOT {mission}: only SPOT 1-5 are DIMAP v1")
 
     # ---- pixel convention
-    origin_text = doc.opt_text("Raster_CS/PIXEL_ORIGIN")
-    origin = 1.0 if origin_text is None else doc.float(root, "Raster_CS/PIXEL_ORIGIN",
-                                                       "Raster_CS/PIXEL_ORIGIN")
+    origin_text = doc.optional_text("Raster_CS/PIXEL_ORIGIN")
+    origin = 1.0 if origin_text is None else doc.number("Raster_CS/PIXEL_ORIGIN")
     if origin not in (0.0, 1.0):
         raise doc.error("Raster_CS/PIXEL_ORIGIN", f"{origin_text!r}: must be 0 or 1")
-    cs_type = (doc.opt_text("Raster_CS/RASTER_CS_TYPE") or "POINT").upper()
+    cs_type = (doc.optional_text("Raster_CS/RASTER_CS_TYPE") or "POINT").upper()
     if cs_type not in ("POINT", "CELL"):
         raise doc.error("Raster_CS/RASTER_CS_TYPE", f"{cs_type!r} is neither POINT nor CELL")
-    offset = origin + (0.5 if cs_type == "CELL" else 0.0)  # geoblock = DIMAP - offset
+    offset = origin + (PIXEL_CENTRE if cs_type == "CELL" else 0.0)  # geoblock = DIMAP - offset
 
-    rows = doc.size(root, "Raster_Dimensions/NROWS", "Raster_Dimensions/NROWS")
-    cols = doc.size(root, "Raster_Dimensions/NCOLS", "Raster_Dimensions/NCOLS", 2)
+    rows = doc.integer("Raster_Dimensions/NROWS", minimum=1, maximum=MAX_IMAGE_SIZE)
+    cols = doc.integer("Raster_Dimensions/NCOLS", minimum=2, maximum=MAX_IMAGE_SIZE)
 
     # ---- ephemeris and the time origin
-    points = doc.all(_EPHEMERIS, _EPHEMERIS, 2)
-    times = [doc.time(p, "TIME", f"{_EPHEMERIS}/TIME") for p in points]
+    points = doc.nodes(_EPHEMERIS, minimum=2)
+    times = [doc.time("TIME", p, _EPHEMERIS + "/", years=YEAR_RANGE) for p in points]
     epoch64 = min(times)
 
     def seconds(t64: np.datetime64) -> float:
         return float((t64 - epoch64) / np.timedelta64(1, "us")) * 1e-6
 
     eph_t = np.array([seconds(t) for t in times])
-    doc.increasing(eph_t, _EPHEMERIS + "/TIME")
-    pos = doc.vectors(points, "Location", _EPHEMERIS)
-    vel = doc.vectors(points, "Velocity", _EPHEMERIS)
+    doc.increasing(eph_t, _EPHEMERIS + "/TIME", "times")
+    pos = _vectors(doc, points, "Location", _EPHEMERIS)
+    vel = _vectors(doc, points, "Velocity", _EPHEMERIS)
     check_orbit_radius(file, _EPHEMERIS + "/Location", pos)
     check_speed(file, _EPHEMERIS + "/Velocity", vel)
     derivative = _position_derivative(eph_t, pos)
@@ -833,50 +755,49 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
             f"velocities disagree with the positions' time derivative by {err_fixed:.1f} m/s "
             f"(Earth-fixed) / {err_inertial:.1f} m/s (inertial): inconsistent ephemeris",
         )
-    doris_used = (doc.opt_text("Data_Strip/Ephemeris/DORIS_USED") or "N").upper() == "Y"
-    doris = root.findall("Data_Strip/Ephemeris/Doris_Points/Doris_Point")
+    doris_used = (doc.optional_text("Data_Strip/Ephemeris/DORIS_USED") or "N").upper() == "Y"
+    doris = doc.nodes("Data_Strip/Ephemeris/Doris_Points/Doris_Point")
     doris_err = np.array(
-        [doc.float(d, "ERROR_ESTIMATION", "Doris_Point/ERROR_ESTIMATION")
+        [doc.number("ERROR_ESTIMATION", d, "Doris_Point/")
          for d in doris if d.find("ERROR_ESTIMATION") is not None]
     )
 
     # ---- line dating
-    period = doc.float(root, _TIME_STAMP + "/LINE_PERIOD", _TIME_STAMP + "/LINE_PERIOD")
+    period = doc.number(_TIME_STAMP + "/LINE_PERIOD")
     if not 0 < period <= MAX_LINE_PERIOD_S:
         raise doc.error(_TIME_STAMP + "/LINE_PERIOD",
                         f"{period!r} s: a line period must be > 0 and <= {MAX_LINE_PERIOD_S:g} s")
-    center_time = seconds(doc.time(root, _TIME_STAMP + "/SCENE_CENTER_TIME",
-                                   _TIME_STAMP + "/SCENE_CENTER_TIME"))
-    center_row = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_LINE",
-                           _TIME_STAMP + "/SCENE_CENTER_LINE") - offset
-    center_col = doc.float(root, _TIME_STAMP + "/SCENE_CENTER_COL",
-                           _TIME_STAMP + "/SCENE_CENTER_COL") - offset
+    center_time = seconds(doc.time(_TIME_STAMP + "/SCENE_CENTER_TIME", years=YEAR_RANGE))
+    center_row = doc.number(_TIME_STAMP + "/SCENE_CENTER_LINE") - offset
+    center_col = doc.number(_TIME_STAMP + "/SCENE_CENTER_COL") - offset
     for name, value in (("SCENE_CENTER_LINE", center_row), ("SCENE_CENTER_COL", center_col)):
         doc.bounded(np.array([value]), MAX_IMAGE_SIZE, f"{_TIME_STAMP}/{name}", "pixel")
 
     # ---- attitude
-    raw = _angle_samples(doc, root.findall(_ANGLES), _ANGLES, seconds)
-    speeds = _angle_samples(doc, root.findall(_SPEEDS), _SPEEDS, seconds)
-    corrected = _angle_samples(doc, root.findall(_CORRECTED), _CORRECTED, seconds)
+    raw = _angle_samples(doc, _ANGLES, seconds)
+    speeds = _angle_samples(doc, _SPEEDS, seconds)
+    corrected = _angle_samples(doc, _CORRECTED, seconds)
     if corrected is None and speeds is None:
         raise doc.error(_ATTITUDES, "neither Corrected_Attitudes nor Aocs_Attitude "
                         "Angular_Speeds: no attitude (truncated metadata?)")
-    quats = root.findall(_QUATERNIONS)
-    q_t = np.array([seconds(doc.time(q, "Q_TIME", _QUATERNIONS + "/Q_TIME")) for q in quats])
-    q = np.array([[doc.float(e, f"Q{k}", f"{_QUATERNIONS}/Q{k}") for k in range(4)]
+    quats = doc.nodes(_QUATERNIONS)
+    q_t = np.array([seconds(doc.time("Q_TIME", q, _QUATERNIONS + "/", years=YEAR_RANGE))
+                    for q in quats])
+    q = np.array([[doc.number(f"Q{k}", e, _QUATERNIONS + "/") for k in range(4)]
                   for e in quats]).reshape(-1, 4)
-    doc.increasing(q_t, _QUATERNIONS + "/Q_TIME")
+    doc.increasing(q_t, _QUATERNIONS + "/Q_TIME", "times")
     check_unit_quaternions(file, _QUATERNIONS + "/Q0..Q3", q)
-    star = doc.opt_text(_ATTITUDES + "/Corrected_Attitudes/STAR_TRACKER_USED")
+    star = doc.optional_text(_ATTITUDES + "/Corrected_Attitudes/STAR_TRACKER_USED")
 
     # ---- look angles (first band's table)
-    look_list = root.find(_LOOK_LISTS)
-    look = [] if look_list is None else look_list.findall("Look_Angles_List/Look_Angles")
+    look_list = doc.find(_LOOK_LISTS)
+    look = [] if look_list is None else doc.nodes("Look_Angles_List/Look_Angles", look_list,
+                                                  _LOOK_LISTS + "/")
     if len(look) < 2:
         raise doc.error(_LOOK, f"{len(look)} element(s), at least 2 needed (truncated metadata?)")
-    det = np.array([doc.int(e, "DETECTOR_ID", _LOOK + "/DETECTOR_ID") for e in look], float)
-    psi_x = np.array([doc.float(e, "PSI_X", _LOOK + "/PSI_X") for e in look])
-    psi_y = np.array([doc.float(e, "PSI_Y", _LOOK + "/PSI_Y") for e in look])
+    det = np.array([doc.integer("DETECTOR_ID", e, _LOOK + "/") for e in look], float)
+    psi_x = np.array([doc.number("PSI_X", e, _LOOK + "/") for e in look])
+    psi_y = np.array([doc.number("PSI_Y", e, _LOOK + "/") for e in look])
     if not np.all(np.diff(det) > 0):
         raise doc.error(_LOOK + "/DETECTOR_ID", "detector numbers are not strictly increasing")
     if det[0] < 1 or det[-1] > MAX_IMAGE_SIZE:
@@ -894,7 +815,7 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
         lon, lat, h, row, col = (
             0.0 if tag is None or (k == 2 and e.find(tag) is None)
             else check_ground_value(file, f"{field}/{tag}", kind,
-                                    doc.float(e, tag, f"{field}/{tag}"))
+                                    doc.number(tag, e, field + "/"))
             for k, (tag, kind) in enumerate(zip(tags, GROUND_POINT_LIMITS, strict=True)))
         return GroundPoint(lon=lon, lat=lat, h=h, row=row - offset, col=col - offset)
 
@@ -902,40 +823,40 @@ def read_dimap(path: str | os.PathLike[str]) -> SpotDimap:
         return ground_point(e, field, ("FRAME_LON", "FRAME_LAT", None, "FRAME_ROW", "FRAME_COL"))
 
     vertices = tuple(frame_point(v, "Dataset_Frame/Vertex")
-                     for v in root.findall("Dataset_Frame/Vertex"))
-    center_elem = root.find("Dataset_Frame/Scene_Center")
+                     for v in doc.nodes("Dataset_Frame/Vertex"))
+    center_elem = doc.find("Dataset_Frame/Scene_Center")
     scene_center = None if center_elem is None else frame_point(center_elem,
                                                                 "Dataset_Frame/Scene_Center")
     tie_field = "Geoposition/Geoposition_Points/Tie_Point"
     tie_points = tuple(
         ground_point(t, tie_field, ("TIE_POINT_CRS_X", "TIE_POINT_CRS_Y", "TIE_POINT_CRS_Z",
                                     "TIE_POINT_DATA_Y", "TIE_POINT_DATA_X"))
-        for t in root.findall(tie_field)
+        for t in doc.nodes(tie_field)
     )
 
     def simplified(kind: str) -> np.ndarray | None:
-        node = root.find(f"{_SIMPLIFIED}/{kind}")
+        field = f"{_SIMPLIFIED}/{kind}"
+        node = doc.find(field)
         if node is None:
             return None
-        field = f"{_SIMPLIFIED}/{kind}"
-        lc = [doc.float(e, ".", field + "/lc_List/lc") for e in node.findall("lc_List/lc")]
-        pc = [doc.float(e, ".", field + "/pc_List/pc") for e in node.findall("pc_List/pc")]
+        lc = [doc.number(".", e, field + "/lc_List/lc/") for e in node.findall("lc_List/lc")]
+        pc = [doc.number(".", e, field + "/pc_List/pc/") for e in node.findall("pc_List/pc")]
         if len(lc) != 6 or len(pc) != 6:
             raise doc.error(field, f"{len(lc)} lc and {len(pc)} pc coefficients, 6 each expected")
         return np.array([lc, pc])
 
     def opt_float(sub: str) -> float:
-        return np.nan if doc.opt_text(sub) is None else doc.float(root, sub, sub)
+        return np.nan if doc.optional_text(sub) is None else doc.number(sub)
 
     step_field = "Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT"
-    step = None if doc.opt_text(step_field) is None else doc.int(root, step_field, step_field)
-    instrument = (doc.opt_text(_SOURCE + "/INSTRUMENT") or "") + (
-        doc.opt_text(_SOURCE + "/INSTRUMENT_INDEX") or "")
+    step = None if doc.optional_text(step_field) is None else doc.integer(step_field)
+    instrument = (doc.optional_text(_SOURCE + "/INSTRUMENT") or "") + (
+        doc.optional_text(_SOURCE + "/INSTRUMENT_INDEX") or "")
     return SpotDimap(
         path=file,
         mission=mission,
         instrument=instrument,
-        sensor_code=doc.opt_text(_SOURCE + "/SENSOR_CODE") or "",
+        sensor_code=doc.optional_text(_SOURCE + "/SENSOR_CODE") or "",
         profile=profile,
         shape=(rows, cols),
         epoch=str(epoch64) + "Z",

@@ -78,7 +78,6 @@ from __future__ import annotations
 
 import numbers
 import os
-import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -86,6 +85,8 @@ from pathlib import Path
 import numpy as np
 
 from geoblock import coords
+from geoblock.errors import GeoblockIOError
+from geoblock.io.metadata import XmlFields, read_bytes, read_xml
 from geoblock.models.linescan import (
     Attitude,
     Ephemeris,
@@ -96,11 +97,13 @@ from geoblock.models.linescan import (
     quaternion_to_matrix,
 )
 from geoblock.models.parameters import ParameterSet, location_accuracy
+from geoblock.pixels import image_domain
 from geoblock_spot.dimap import (
     EARTH_ROTATION_RAD_S,
     MAX_IMAGE_SIZE,
     MAX_LINE_PERIOD_S,
     MAX_LOOK_TANGENT,
+    YEAR_RANGE,
     DimapFormatError,
     GroundPoint,
     check_ground_value,
@@ -108,7 +111,6 @@ from geoblock_spot.dimap import (
     check_speed,
     check_unit_quaternions,
     file_named,
-    parse_time,
     with_parameters,
 )
 
@@ -273,20 +275,19 @@ def is_dimap2(path: str | os.PathLike[str]) -> bool:
     if not p.is_file():
         return False
     try:
-        with open(p, "rb") as fh:
-            head = fh.read(8192)
-    except OSError:
+        head = read_bytes(p, 8192)
+    except GeoblockIOError:
         return False
     if b"<Dimap_Document" not in head and b"<PHR_Dimap_Document" not in head:
         return False
     try:
-        root = ET.parse(p).getroot()
-    except OSError:
+        root = read_xml(p, DimapFormatError).root
+    except GeoblockIOError:
         return False
-    except (ET.ParseError, LookupError, ValueError):  # LookupError: unknown encoding
+    except DimapFormatError:  # not well-formed: claimed if it holds a physical model's tag
         try:
-            data = p.read_bytes()
-        except OSError:
+            data = read_bytes(p)
+        except GeoblockIOError:
             return False
         return b"<Refined_Model" in data or b"<Sensor_Model_Characteristics" in data
     if root.tag == "Dimap_Document":
@@ -311,92 +312,32 @@ def read_dimap2(path: str | os.PathLike[str]) -> Dimap2:
 
     Raises
     ------
+    GeoblockIOError
+        The file cannot be read.
     DimapFormatError
-        Missing, malformed or inconsistent fields (named in the message), attitudes in a
-        frame other than ECEF, velocities that are neither Earth-fixed nor inertial.
+        Not well-formed XML; missing, malformed or inconsistent fields (named in the
+        message), attitudes in a frame other than ECEF, velocities that are neither
+        Earth-fixed nor inertial.
     """
     p = Path(path)
-    try:
-        root = ET.parse(p).getroot()
-    except (ET.ParseError, LookupError, ValueError) as exc:  # LookupError: unknown encoding
-        raise DimapFormatError(p, "(document)", f"not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise DimapFormatError(p, "(document)", f"cannot be read ({exc})") from None
+    doc = read_xml(p, DimapFormatError)
+    root = doc.root
     if root.tag == "Dimap_Document" and root.find("Geometric_Data/Refined_Model") is not None:
-        return _read_refined_model(p, root)
+        return _read_refined_model(p, doc)
     if (root.tag == "PHR_Dimap_Document"
             and root.find("Geometric_Data/Sensor_Model_Characteristics") is not None):
-        return _read_phr_internal(p, root)
+        return _read_phr_internal(p, doc)
     raise DimapFormatError(p, "Geometric_Data",
                            f"root <{root.tag}> holds no physical sensor model (neither "
                            "Dimap_Document/Geometric_Data/Refined_Model nor PHR_Dimap_Document/"
                            "Geometric_Data/Sensor_Model_Characteristics)")
 
 
-class _Doc:
-    """Field access with errors naming the file and the element."""
-
-    def __init__(self, path: Path, root: ET.Element) -> None:
-        self.path, self.root = path, root
-
-    def node(self, where: str, base: ET.Element | None = None, label: str = "") -> ET.Element:
-        e = (self.root if base is None else base).find(where)
-        if e is None:
-            raise DimapFormatError(self.path, label + where, "missing")
-        return e
-
-    def text(self, where: str, base: ET.Element | None = None, label: str = "") -> str:
-        e = self.node(where, base, label)
-        if e.text is None or not e.text.strip():
-            raise DimapFormatError(self.path, label + where, "empty")
-        return e.text.strip()
-
-    def number(self, where: str, base: ET.Element | None = None, label: str = "") -> float:
-        s = self.text(where, base, label)
-        try:
-            v = float(s)
-        except ValueError:
-            raise DimapFormatError(self.path, label + where, f"not a number: {s!r}") from None
-        if not np.isfinite(v):
-            raise DimapFormatError(self.path, label + where, f"not finite: {s!r}")
-        return v
-
-    def numbers(self, where: str, base: ET.Element | None = None, label: str = "",
-                count: int | None = None) -> np.ndarray:
-        s = self.text(where, base, label)
-        try:
-            v = np.array(s.split(), dtype=np.float64)
-        except ValueError:
-            raise DimapFormatError(self.path, label + where, f"not numbers: {s!r}") from None
-        if count is not None and v.size != count:
-            raise DimapFormatError(self.path, label + where,
-                                   f"expected {count} numbers, got {v.size}: {s!r}")
-        if not np.all(np.isfinite(v)):
-            raise DimapFormatError(self.path, label + where, f"not finite: {s!r}")
-        return v
-
-    def time(self, where: str, base: ET.Element | None = None, label: str = "") -> np.datetime64:
-        """A ``datetime64[ns]``: parsed (and its year checked) in microseconds, which do not
-        overflow, plus the string's digits below the microsecond (the internal Pleiades
-        format has seven)."""
-        s = self.text(where, base, label)
-        value = parse_time(self.path, label + where, s).astype("datetime64[ns]")
-        below_us = _BELOW_MICROSECOND.search(s)
-        if below_us:
-            value += np.timedelta64(int(below_us.group(1)[:3].ljust(3, "0")), "ns")
-        return value
-
-    def integer(self, where: str, base: ET.Element | None = None, label: str = "",
-                maximum: float = MAX_IMAGE_SIZE, minimum: int = 1) -> int:
-        v = self.number(where, base, label)
-        if v != int(v) or not minimum <= v <= maximum:
-            raise DimapFormatError(self.path, label + where,
-                                   f"must be a whole number from {minimum} to {maximum:g}, got {v}")
-        return int(v)
-
-
-#: the fraction-of-second digits after the sixth (numpy truncates them at the microsecond)
-_BELOW_MICROSECOND = re.compile(r"\.\d{6}(\d+)")
+def _time(doc: XmlFields, where: str, base: ET.Element | None = None,
+          label: str = "") -> np.datetime64:
+    """A ``datetime64[ns]`` time, its year plausible (the internal Pleiades format has seven
+    digits of seconds: those below the microsecond are kept)."""
+    return doc.time(where, base, label, years=YEAR_RANGE, unit="ns")
 
 
 def _seconds(t: np.datetime64, epoch: np.datetime64) -> float:
@@ -423,7 +364,7 @@ def _derivative(t: np.ndarray, p: np.ndarray) -> np.ndarray:
     return out
 
 
-def _velocity_frame(doc: _Doc, field: str, t: np.ndarray, p: np.ndarray, v: np.ndarray) -> str:
+def _velocity_frame(doc: XmlFields, field: str, t: np.ndarray, p: np.ndarray, v: np.ndarray) -> str:
     """``"earth-fixed"`` or ``"inertial"``: every sample within the tolerance of one of them."""
     d = _derivative(t, p)
     err_ef = float(np.max(np.linalg.norm(v - d, axis=-1)))
@@ -432,51 +373,51 @@ def _velocity_frame(doc: _Doc, field: str, t: np.ndarray, p: np.ndarray, v: np.n
         return "earth-fixed"
     if err_in <= _VELOCITY_TOLERANCE_M_S:
         return "inertial"
-    raise DimapFormatError(doc.path, field,
+    raise doc.error(field,
                            f"the velocities match neither the derivative of the positions "
                            f"(off by up to {err_ef:.1f} m/s) nor it plus the Earth's rotation "
                            f"omega x P ({err_in:.1f} m/s); tolerance "
                            f"{_VELOCITY_TOLERANCE_M_S} m/s")
 
 
-def _ephemeris(doc: _Doc, points: list[ET.Element], field: str, pos_tag: str, vel_tag: str,
+def _ephemeris(doc: XmlFields, points: list[ET.Element], field: str, pos_tag: str, vel_tag: str,
                time_tag: str, epoch: np.datetime64):
     if len(points) < 2:
-        raise DimapFormatError(doc.path, field, f"needs at least 2 points, got {len(points)}")
-    t = np.array([_seconds(doc.time(time_tag, e, f"{field}[{i}]/"), epoch)
+        raise doc.error(field, f"needs at least 2 points, got {len(points)}")
+    t = np.array([_seconds(_time(doc, time_tag, e, f"{field}[{i}]/"), epoch)
                   for i, e in enumerate(points)])
     pos = np.array([doc.numbers(pos_tag, e, f"{field}[{i}]/", 3) for i, e in enumerate(points)])
     vel = np.array([doc.numbers(vel_tag, e, f"{field}[{i}]/", 3) for i, e in enumerate(points)])
     for e in points:
         unit = e.find(pos_tag).get("unit", "m")
         if unit not in ("m", "meter", "metre"):
-            raise DimapFormatError(doc.path, f"{field}/{pos_tag}", f"unit {unit!r}, expected m")
+            raise doc.error(f"{field}/{pos_tag}", f"unit {unit!r}, expected m")
     if np.any(~(np.diff(t) > 0)):
-        raise DimapFormatError(doc.path, field, "point times are not strictly increasing")
-    check_orbit_radius(doc.path, f"{field}[{{i}}]/{pos_tag}", pos)
-    check_speed(doc.path, f"{field}[{{i}}]/{vel_tag}", vel)
+        raise doc.error(field, "point times are not strictly increasing")
+    check_orbit_radius(doc.source, f"{field}[{{i}}]/{pos_tag}", pos)
+    check_speed(doc.source, f"{field}[{{i}}]/{vel_tag}", vel)
     return t, pos, vel, _velocity_frame(doc, field, t, pos, vel)
 
 
-def _line_period(doc: _Doc, where: str, default_unit: str) -> float:
+def _line_period(doc: XmlFields, where: str, default_unit: str) -> float:
     e = doc.node(where)
     unit = e.get("unit", default_unit)
     if unit not in _LINE_PERIOD_UNITS:
-        raise DimapFormatError(doc.path, where, f"unknown unit {unit!r}")
+        raise doc.error(where, f"unknown unit {unit!r}")
     value = doc.number(where) * _LINE_PERIOD_UNITS[unit]
     if not 0 < value <= MAX_LINE_PERIOD_S:
-        raise DimapFormatError(doc.path, where, f"must be > 0 and <= {MAX_LINE_PERIOD_S:g} s, "
+        raise doc.error(where, f"must be > 0 and <= {MAX_LINE_PERIOD_S:g} s, "
                                                 f"got {value!r} s")
     return value
 
 
-def _points(doc: _Doc, base: ET.Element | None) -> tuple[tuple[GroundPoint, ...],
+def _points(doc: XmlFields, base: ET.Element | None) -> tuple[tuple[GroundPoint, ...],
                                                          GroundPoint | None]:
     if base is None:
         return (), None
 
     def point(e: ET.Element, label: str) -> GroundPoint:
-        values = {tag: check_ground_value(doc.path, label + tag, tag.lower(),
+        values = {tag: check_ground_value(doc.source, label + tag, tag.lower(),
                                           doc.number(tag, e, label))
                   for tag in ("LON", "LAT", "ROW", "COL")}
         return GroundPoint(lon=values["LON"], lat=values["LAT"], h=0.0, row=values["ROW"] - 1.0,
@@ -487,27 +428,28 @@ def _points(doc: _Doc, base: ET.Element | None) -> tuple[tuple[GroundPoint, ...]
     return vertices, (point(c, "Center/") if c is not None else None)
 
 
-def _check_raster_origin(doc: _Doc, where: str) -> None:
+def _check_raster_origin(doc: XmlFields, where: str) -> None:
     e = doc.root.find(where)
     if e is not None and e.text is not None and e.text.strip() not in ("1", "1.0"):
-        raise DimapFormatError(doc.path, where,
+        raise doc.error(where,
                                f"only PIXEL_ORIGIN 1 is supported, got {e.text.strip()!r}")
 
 
-def _check_duration(doc: _Doc, where: str, rows: int, line_period: float, end_s: float) -> None:
+def _check_duration(doc: XmlFields, where: str, rows: int, line_period: float,
+                    end_s: float) -> None:
     expected = (rows - 1) * line_period
     if not abs(end_s - expected) <= _DURATION_TOLERANCE * expected + 2.0 * line_period:
-        raise DimapFormatError(doc.path, where,
+        raise doc.error(where,
                                f"END - START = {end_s:.6f} s but (NROWS - 1) x line period = "
                                f"{expected:.6f} s: the line period or the image size is wrong")
 
 
-def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
-    doc = _Doc(path, root)
+def _read_refined_model(path: Path, doc: XmlFields) -> Dimap2:
+    root = doc.root
     profile = doc.text("Metadata_Identification/METADATA_PROFILE")
     _check_raster_origin(doc, "Geoposition/Raster_CRS/PIXEL_ORIGIN")
-    rows = doc.integer("Raster_Data/Raster_Dimensions/NROWS")
-    cols = doc.integer("Raster_Data/Raster_Dimensions/NCOLS", minimum=2)
+    rows = doc.integer("Raster_Data/Raster_Dimensions/NROWS", minimum=1, maximum=MAX_IMAGE_SIZE)
+    cols = doc.integer("Raster_Data/Raster_Dimensions/NCOLS", minimum=2, maximum=MAX_IMAGE_SIZE)
     rm = "Geometric_Data/Refined_Model"
     crs = root.find(f"{rm}/Coordinate_Reference_System/Geodetic_CRS")
     if crs is not None:
@@ -519,8 +461,8 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
                 f"ephemeris and attitudes are given in {code or kind or 'an unnamed frame'!r}, "
                 "not the Earth-fixed EPSG:4978; inertial frames are not supported (they need "
                 "Earth-orientation parameters)")
-    start = doc.time(f"{rm}/Time/Time_Range/START")
-    end_s = _seconds(doc.time(f"{rm}/Time/Time_Range/END"), start)
+    start = _time(doc, f"{rm}/Time/Time_Range/START")
+    end_s = _seconds(_time(doc, f"{rm}/Time/Time_Range/END"), start)
     line_period = _line_period(doc, f"{rm}/Time/Time_Stamp/LINE_PERIOD",
                                "microsecond" if profile.startswith("PNEO") else "millisecond")
     _check_duration(doc, f"{rm}/Time/Time_Range", rows, line_period, end_s)
@@ -535,7 +477,7 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
     q_t, q, poly, source = np.empty(0), np.empty((0, 4)), None, ""
     if table:
         field = f"{att}/Quaternion_List/Quaternion"
-        q_t = np.array([_seconds(doc.time("TIME", e, f"{field}[{i}]/"), start)
+        q_t = np.array([_seconds(_time(doc, "TIME", e, f"{field}[{i}]/"), start)
                         for i, e in enumerate(table)])
         q = np.array([[doc.number(f"Q{k}", e, f"{field}[{i}]/") for k in range(4)]
                       for i, e in enumerate(table)])
@@ -560,7 +502,7 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
     base = band if band is not None else cal
     label = ("Instrument_Calibration/Band_Calibration_List/Band_Calibration/"
              if band is not None else "Instrument_Calibration/")
-    first = doc.integer("Swath_Range/FIRST_COL", base, label)
+    first = doc.integer("Swath_Range/FIRST_COL", base, label, minimum=1, maximum=MAX_IMAGE_SIZE)
     look = doc.node("Polynomial_Look_Angles", base, label)
     psi_x = _los_coefficients(doc, look, "XLOS", label + "Polynomial_Look_Angles/")
     psi_y = _los_coefficients(doc, look, "YLOS", label + "Polynomial_Look_Angles/")
@@ -585,15 +527,15 @@ def _read_refined_model(path: Path, root: ET.Element) -> Dimap2:
                   vertices, centre)
 
 
-def _read_phr_internal(path: Path, root: ET.Element) -> Dimap2:
-    doc = _Doc(path, root)
+def _read_phr_internal(path: Path, doc: XmlFields) -> Dimap2:
+    root = doc.root
     profile = doc.text("Metadata_Identification/METADATA_PROFILE")
     _check_raster_origin(doc, "Product_Frame/PIXEL_ORIGIN")
-    rows = doc.integer("Raster_Dimensions/NROWS")
-    cols = doc.integer("Raster_Dimensions/NCOLS", minimum=2)
+    rows = doc.integer("Raster_Dimensions/NROWS", minimum=1, maximum=MAX_IMAGE_SIZE)
+    cols = doc.integer("Raster_Dimensions/NCOLS", minimum=2, maximum=MAX_IMAGE_SIZE)
     smc = "Geometric_Data/Sensor_Model_Characteristics"
-    start = doc.time(f"{smc}/UTC_Sensor_Model_Range/START")
-    end_s = _seconds(doc.time(f"{smc}/UTC_Sensor_Model_Range/END"), start)
+    start = _time(doc, f"{smc}/UTC_Sensor_Model_Range/START")
+    end_s = _seconds(_time(doc, f"{smc}/UTC_Sensor_Model_Range/END"), start)
     line_period = _line_period(doc, f"{smc}/SENSOR_LINE_PERIOD", "millisecond")
     _check_duration(doc, f"{smc}/UTC_Sensor_Model_Range", rows, line_period, end_s)
     field = f"{smc}/Sensor_Ephemeris/Point_List/Point"
@@ -604,7 +546,8 @@ def _read_phr_internal(path: Path, root: ET.Element) -> Dimap2:
                                   models="Polynomial_Models/")
     _check_unit(doc, f"{smc}/Sensor_Attitudes/Polynomial_Models", poly, rows, line_period)
     viewing = f"{smc}/Sensor_Viewing_Model"
-    first = doc.integer(f"{viewing}/Position_In_Retina/FIRST_COL")
+    first = doc.integer(f"{viewing}/Position_In_Retina/FIRST_COL", minimum=1,
+                        maximum=MAX_IMAGE_SIZE)
     psi = []
     for name in ("PsiX_Model", "PsiY_Model"):
         where = f"{viewing}/Viewing_Directions/{name}"
@@ -629,23 +572,24 @@ def _iso(t: np.datetime64) -> str:
     return str(t) + "Z"
 
 
-def _los_coefficients(doc: _Doc, node: ET.Element, prefix: str, label: str) -> np.ndarray:
+def _los_coefficients(doc: XmlFields, node: ET.Element, prefix: str, label: str) -> np.ndarray:
     """``XLOS_0, XLOS_1, ...`` (consecutive, at least ``_0``) as an array."""
     values = []
     while node.find(f"{prefix}_{len(values)}") is not None:
         values.append(doc.number(f"{prefix}_{len(values)}", node, label))
     if not values:
-        raise DimapFormatError(doc.path, f"{label}{prefix}_0", "missing")
+        raise doc.error(f"{label}{prefix}_0", "missing")
     return np.array(values)
 
 
-def _check_unit(doc: _Doc, field: str, poly: QuaternionPolynomial, rows: int,
+def _check_unit(doc: XmlFields, field: str, poly: QuaternionPolynomial, rows: int,
                 line_period: float) -> None:
     """The attitude polynomials must give unit quaternions over the image's rows."""
-    t = np.linspace(-0.5, rows - 0.5, 101) * line_period
+    first, _, last, _ = image_domain((rows, 1))  # the outer edges of the rows
+    t = np.linspace(first, last, 101) * line_period
     with np.errstate(all="ignore"):
         check_unit_quaternions(
-            doc.path, f"{field}/Q0..Q3", poly.raw(t),
+            doc.source, f"{field}/Q0..Q3", poly.raw(t),
             lambda i: f"the polynomials' quaternion at {t[i]:.3f} s after START ")
 
 
@@ -656,19 +600,20 @@ def _look_tangents(coefficients: np.ndarray, first: int, cols: int) -> np.ndarra
     return np.polynomial.polynomial.polyval(d, coefficients)
 
 
-def _check_look(doc: _Doc, field: str, coefficients: np.ndarray, first: int, cols: int) -> None:
+def _check_look(doc: XmlFields, field: str, coefficients: np.ndarray, first: int,
+                cols: int) -> None:
     """The look-angle tangents of every detector of the image must be finite and small."""
     with np.errstate(all="ignore"):
         tangent = _look_tangents(coefficients, first, cols)
     bad = np.flatnonzero(~(np.abs(tangent) < MAX_LOOK_TANGENT))
     if bad.size:
-        raise DimapFormatError(doc.path, field,
+        raise doc.error(field,
                                f"the look-angle tangent of column {bad[0]} is "
                                f"{tangent[bad[0]]!r}: not plausible (|tan| must be < "
                                f"{MAX_LOOK_TANGENT:g})")
 
 
-def _quaternion_polynomial(doc: _Doc, node: ET.Element, where: str, start: np.datetime64,
+def _quaternion_polynomial(doc: XmlFields, node: ET.Element, where: str, start: np.datetime64,
                            models: str = "") -> QuaternionPolynomial:
     coefficients = []
     for k in range(4):
@@ -676,7 +621,7 @@ def _quaternion_polynomial(doc: _Doc, node: ET.Element, where: str, start: np.da
         c = doc.numbers(f"{models}Q{k}/COEFFICIENTS", node, f"{where}/")
         degree = doc.number("DEGREE", doc.node(f"{models}Q{k}", node, f"{where}/"), label)
         if c.size != degree + 1:
-            raise DimapFormatError(doc.path, f"{label}COEFFICIENTS",
+            raise doc.error(f"{label}COEFFICIENTS",
                                    f"DEGREE {degree:g} needs {degree + 1:g} coefficients, "
                                    f"got {c.size}")
         coefficients.append(c)
@@ -687,7 +632,7 @@ def _quaternion_polynomial(doc: _Doc, node: ET.Element, where: str, start: np.da
     offset = doc.number("OFFSET", node, f"{where}/")
     scale = doc.number("SCALE", node, f"{where}/")
     if not scale > 0:
-        raise DimapFormatError(doc.path, f"{where}/SCALE", f"must be > 0, got {scale}")
+        raise doc.error(f"{where}/SCALE", f"must be > 0, got {scale}")
     midnight = start.astype("datetime64[D]").astype("datetime64[ns]")
     return QuaternionPolynomial(coef, offset - _seconds(start, midnight), scale)
 
@@ -758,7 +703,8 @@ def dimap2_model(
                               meta.earth_fixed_velocity_m_s())
     with file_named(meta.path, "LINE_PERIOD"):
         line_times = LineTimes(0.0, 0.0, meta.line_period_s)
-    t_first, t_last = -0.5 * meta.line_period_s, (rows - 0.5) * meta.line_period_s
+    first, _, last, _ = image_domain(meta.shape)  # the outer edges of the rows
+    t_first, t_last = first * meta.line_period_s, last * meta.line_period_s
     if meta.quaternion_polynomial is not None:
         # the search span of LinescanModel (rows plus max(half the image, 1 s) each side),
         # limited to the ephemeris

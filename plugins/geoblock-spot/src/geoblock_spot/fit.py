@@ -17,7 +17,7 @@ from geoblock import coords
 from geoblock.errors import AdjustmentError
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
-from geoblock_spot.chenlee import SPOT1A_INTERIOR, ChenLeeModel, Interior, WorkFrame
+from geoblock_spot.chenlee import SPOT1A_INTERIOR, ChenLeeModel, Interior
 
 __all__ = ["ChenLeeFit", "fit_chenlee"]
 
@@ -76,7 +76,7 @@ def _ground_points(model: SensorModel, row, col, h):
     return row[ok], col[ok], lon[ok], lat[ok], hh[ok]
 
 
-def default_frame(model: SensorModel) -> WorkFrame:
+def default_frame(model: SensorModel) -> coords.LocalFrame:
     """A work frame at the image centre (on the middle of the height range) with ``X`` along
     the ground track (direction of increasing rows): Teo et al.'s LVLH-like axes."""
     rows, cols = model.shape
@@ -91,10 +91,12 @@ def default_frame(model: SensorModel) -> WorkFrame:
             f"h = {h:g} m; give a frame"
         )
     de, dn, _ = coords.enu_offsets(g.lon[1], g.lat[1], h, g.lon[2], g.lat[2], h)
-    return WorkFrame(float(g.lon[0]), float(g.lat[0]), h, math.degrees(math.atan2(de, dn)))
+    return coords.LocalFrame(float(g.lon[0]), float(g.lat[0]), h,
+                             math.degrees(math.atan2(de, dn)))
 
 
-def _initial_coefficients(model: SensorModel, frame: WorkFrame, interior: Interior) -> np.ndarray:
+def _initial_coefficients(model: SensorModel, frame: coords.LocalFrame,
+                          interior: Interior) -> np.ndarray:
     """First guess: per sampled line, the perspective centre (least-squares meeting point of the
     line's rays) and the rotation that puts those rays in the plane x = 0; then quadratic fits
     in t of the centres and angles, and ``Sy`` from the ray directions."""
@@ -110,8 +112,8 @@ def _initial_coefficients(model: SensorModel, frame: WorkFrame, interior: Interi
             f"fit_chenlee: the {model.name!r} model cannot backproject its image corners and "
             "edges over its height range"
         )
-    a = frame.from_geodetic(*top)  # (L, K, 3) work frame
-    b = frame.from_geodetic(*low)
+    a = np.stack(frame.from_geodetic(*top), axis=-1)  # (L, K, 3) work frame
+    b = np.stack(frame.from_geodetic(*low), axis=-1)
     d = b - a
     d /= np.linalg.norm(d, axis=-1, keepdims=True)  # down the line of sight
     proj = np.eye(3) - d[..., :, None] * d[..., None, :]  # (L, K, 3, 3)
@@ -151,7 +153,7 @@ def fit_chenlee(
     model: SensorModel,
     *,
     interior: Interior = SPOT1A_INTERIOR,
-    frame: WorkFrame | None = None,
+    frame: coords.LocalFrame | None = None,
     heights: np.ndarray | None = None,
     grid: tuple[int, int] = (15, 15),
     max_iterations: int = 50,
@@ -174,7 +176,7 @@ def fit_chenlee(
         Nominal interior geometry (default SPOT 1A). Only used as the model's constants:
         errors in ``focal_length / pixel_size`` are absorbed by ``Sy`` and in the line period
         by the time polynomials.
-    frame : WorkFrame, optional
+    frame : geoblock.coords.LocalFrame, optional
         Work frame; default :func:`default_frame` (image centre, ``X`` along track).
     heights : array_like, optional
         Heights of the grid, metres; default 5 levels spanning ``model.height_range``.

@@ -8,8 +8,9 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from geoblock.coords import LocalFrame
-from geoblock.models import ParameterSet, SensorModelBase
-from geoblock.typing import ArrayLike, Status
+from geoblock.errors import ModelFormatError
+from geoblock.models import ParameterSet, SensorModelBase, broadcast_float64, warn_status
+from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = ["FrameCamera"]
 
@@ -83,9 +84,10 @@ class FrameCamera(SensorModelBase):
         self._centre = tuple(float(v) for v in centre)
         self._height_range = (float(height_range[0]), float(height_range[1]))
         if not self._f > 0:
-            raise ValueError(f"FrameCamera: principal_distance must be > 0, got {self._f!r}")
+            raise ModelFormatError(
+                f"FrameCamera: principal_distance must be > 0, got {self._f!r}")
         if not self._height_range[1] < self._centre[2]:
-            raise ValueError(
+            raise ModelFormatError(
                 f"FrameCamera: height_range {self._height_range} must lie below the "
                 f"projection centre (h = {self._centre[2]} m)"
             )
@@ -154,8 +156,25 @@ class FrameCamera(SensorModelBase):
     # --8<-- [end:state]
     # --8<-- [start:geometry]
     # ---------------------------------------------------------------- geometry
-    def ground_to_image(self, lon, lat, h):
-        """Collinearity on flat finite float64 arrays (N,); returns (row, col, status)."""
+    def ground_to_image(
+        self, lon: Float64Array, lat: Float64Array, h: Float64Array
+    ) -> tuple[Float64Array, Float64Array, np.ndarray]:
+        """The kernel: collinearity on flat, finite float64 arrays.
+
+        Parameters
+        ----------
+        lon, lat : ndarray, (N,)
+            Degrees (WGS84).
+        h : ndarray, (N,)
+            Metres above the WGS84 ellipsoid.
+
+        Returns
+        -------
+        row, col : ndarray, (N,)
+            Pixels, pixel-centre convention.
+        status : ndarray of uint8, (N,)
+            ``OUT_OF_DOMAIN`` for points behind the camera, else ``CONVERGED``.
+        """
         enu = np.stack(self._frame.from_geodetic(lon, lat, h), axis=-1)  # (N, 3)
         cam = (enu - self._parameters.values[:3]) @ self._rotation.T  # (N, 3) camera axes
         behind = ~(cam[:, 2] < 0.0)  # the scene must be in front of the camera (zc < 0)
@@ -174,3 +193,31 @@ class FrameCamera(SensorModelBase):
         ground = self._frame.to_geodetic(*(start + s * look))
         return float(ground.lon), float(ground.lat)
     # --8<-- [end:geometry]
+
+    # --8<-- [start:helper]
+    # ---------------------------------------------------------------- a public helper
+    def view_angle(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> Float64Array:
+        """Angle between the camera axis and the ray to each ground point, degrees.
+
+        Parameters
+        ----------
+        lon, lat, h : array_like, (*S,)
+            Degrees, degrees and metres above the WGS84 ellipsoid; broadcast together.
+
+        Returns
+        -------
+        ndarray, (*S,)
+            Degrees; NaN for NaN input and for points behind the camera (one
+            ``OutOfBoundsWarning`` with their count).
+        """
+        lon, lat, h = broadcast_float64(lon=lon, lat=lat, h=h)  # names them in a shape error
+        enu = np.stack(self._frame.from_geodetic(lon, lat, h), axis=-1)  # (*S, 3)
+        cam = (enu - self._parameters.values[:3]) @ self._rotation.T
+        with np.errstate(invalid="ignore", divide="ignore"):
+            angle = np.degrees(np.arccos(-cam[..., 2] / np.linalg.norm(cam, axis=-1)))
+        status = np.where(cam[..., 2] < 0.0, np.uint8(Status.CONVERGED),
+                          np.uint8(Status.OUT_OF_DOMAIN))
+        status[~np.all(np.isfinite(enu), axis=-1)] = Status.INVALID_INPUT  # NaN in: silent
+        warn_status(status, f"{self.name}.view_angle")  # one warning per failure kind
+        return np.where(status == Status.CONVERGED, angle, np.nan)
+    # --8<-- [end:helper]

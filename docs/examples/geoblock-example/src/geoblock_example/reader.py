@@ -12,6 +12,10 @@ Example (``data/sample.frame``)::
     height_range = -500 4000           # metres above WGS84
     sigma_position = 10                # optional, metres
     sigma_attitude = 1e-4              # optional, radians
+    pixel_origin = centre              # optional: "corner" if principal_point is corner-based
+
+The file is read through :mod:`geoblock.io.metadata` (its bytes, then its fields), so every
+error names the file and the field, and the reader never opens a file itself.
 """
 
 from __future__ import annotations
@@ -19,24 +23,15 @@ from __future__ import annotations
 import importlib.resources
 from pathlib import Path
 
-from geoblock.errors import ModelFormatError
+from geoblock.errors import GeoblockIOError, ModelFormatError
+from geoblock.io.metadata import Fields, decode_text, read_bytes
+from geoblock.pixels import corner_to_centre
 from geoblock_example.camera import FrameCamera
 
 __all__ = ["MAGIC", "looks_like_frame_file", "read_frame_file", "sample_file"]
 
 MAGIC = "geoblock-example-frame"
 SUFFIX = ".frame"
-# key -> number of floats expected
-_FIELDS = {
-    "rows": 1,
-    "cols": 1,
-    "principal_distance": 1,
-    "principal_point": 2,
-    "centre": 3,
-    "attitude": 3,
-    "height_range": 2,
-}
-_OPTIONAL = {"sigma_position": 1, "sigma_attitude": 1}
 
 
 def sample_file() -> Path:
@@ -45,6 +40,7 @@ def sample_file() -> Path:
 
 
 def _parse(text: str) -> dict[str, str]:
+    """The ``key = value`` lines of ``text`` as a mapping (comments and blank lines dropped)."""
     items: dict[str, str] = {}
     for line in text.splitlines():
         line = line.split("#", 1)[0].strip()
@@ -56,14 +52,19 @@ def _parse(text: str) -> dict[str, str]:
     return items
 
 
+def _error(source: str, field: str, problem: str) -> ModelFormatError:
+    """This format's error: ``'<file>': field '<key>': <problem>``."""
+    return ModelFormatError(f"{source!r}: field {field!r}: {problem}")
+
+
 # --8<-- [start:read]
 def looks_like_frame_file(path: Path) -> bool:
-    """Cheap recognition: the ``.frame`` suffix and the ``format`` line."""
+    """Cheap recognition: the ``.frame`` suffix and the ``format`` line in the first 4 kB."""
     if path.suffix.lower() != SUFFIX:
         return False
     try:
-        head = path.read_text(encoding="utf-8")[:4096]
-    except (OSError, UnicodeDecodeError):
+        head = decode_text(read_bytes(path, 4096))
+    except GeoblockIOError:  # a directory, no permission ...: not ours
         return False
     return _parse(head).get("format", "").split()[:1] == [MAGIC]
 
@@ -73,38 +74,30 @@ def read_frame_file(path: str | Path) -> FrameCamera:
 
     Raises
     ------
+    geoblock.errors.GeoblockIOError
+        The file cannot be read.
     geoblock.errors.ModelFormatError
         A field is missing or malformed; the message names the file and the field.
     """
     path = Path(path)
-    items = _parse(path.read_text(encoding="utf-8"))
-
-    def floats(key: str, n: int) -> list[float]:
-        if key not in items:
-            raise ModelFormatError(f"{str(path)!r}: missing field {key!r}")
-        try:
-            values = [float(v) for v in items[key].split()]
-        except ValueError:
-            values = []
-        if len(values) != n:
-            raise ModelFormatError(
-                f"{str(path)!r}: field {key!r} needs {n} number(s), got {items[key]!r}"
-            )
-        return values
-
-    fields = {key: floats(key, n) for key, n in _FIELDS.items()}
-    sigma_pos = floats("sigma_position", 1)[0] if "sigma_position" in items else 10.0
-    sigma_att = floats("sigma_attitude", 1)[0] if "sigma_attitude" in items else 1e-4
+    fields = Fields(str(path), _parse(decode_text(read_bytes(path))), error=_error)
+    rows = fields.number("rows", integer=True, low=1, from_text=True)
+    cols = fields.number("cols", integer=True, low=1, from_text=True)
+    row0, col0 = fields.numbers("principal_point", count=2)
+    if fields.string("pixel_origin", "centre", choices=("centre", "corner")) == "corner":
+        row0, col0 = corner_to_centre(row0, col0)  # convert once, at the boundary
+    sigma_pos = fields.number("sigma_position", 10.0, low=0.0, strict_low=True, from_text=True)
+    sigma_att = fields.number("sigma_attitude", 1e-4, low=0.0, strict_low=True, from_text=True)
     try:
         return FrameCamera(
-            shape=(int(fields["rows"][0]), int(fields["cols"][0])),
-            principal_distance=fields["principal_distance"][0],
-            principal_point=tuple(fields["principal_point"]),
-            centre=tuple(fields["centre"]),
-            attitude=fields["attitude"],
+            shape=(rows, cols),
+            principal_distance=fields.number("principal_distance", from_text=True),
+            principal_point=(float(row0), float(col0)),
+            centre=tuple(fields.numbers("centre", count=3)),
+            attitude=fields.numbers("attitude", count=3),
             sigmas=[sigma_pos] * 3 + [sigma_att] * 3,
-            height_range=tuple(fields["height_range"]),
+            height_range=tuple(fields.numbers("height_range", count=2)),
         )
-    except ValueError as exc:
+    except ModelFormatError as exc:  # the model refuses the values: name the file
         raise ModelFormatError(f"{str(path)!r}: {exc}") from exc
 # --8<-- [end:read]

@@ -1,28 +1,28 @@
-"""``geoblock demo``: the project's main job on built-in data (first form).
+"""``geoblock demo``: the project's main job on built-in data.
 
 :func:`run_demo` simulates a small three-strip SPOT-5 block (the ``teo2010-spot5`` preset,
 small variant: 600 x 600 px strips at 100 m with their true and on-board models, a 0-3800 m
-true terrain and a 40 m measured DEM, GCPs, ICPs, TPs and ICTPs), orthorectifies each raw
-image with its ON-BOARD model (what a user is given) on the measured DEM, mosaics the orthos
-and writes a short report: footprints, the on-board models' accuracy at the check points,
-the ICTP discrepancies between strips and a PNG quicklook of the mosaic with the strips'
-outlines. The misregistration of the on-board models shows in the mosaic at the seams; the
-block adjustment, when it comes, will remove it.
+true terrain and a 40 m measured DEM, GCPs, ICPs, TPs and ICTPs;
+:func:`~geoblock.simulate.scenario.demo_scenario`), orthorectifies each raw image with its
+ON-BOARD model (what a user is given) on the measured DEM, mosaics the orthos and writes a
+short report: footprints, the on-board models' accuracy at the check points, the ICTP
+discrepancies between strips and a PNG quicklook of the mosaic with the strips' outlines.
+The misregistration of the on-board models shows in the mosaic at the seams; the block
+adjustment removes it.
 
 Re-running into the same OUTDIR replaces the previous demo's outputs. A demo output is
 recognised by the marker file :data:`DEMO_MARKER` (``OUTDIR/.geoblock-demo``), which
 :func:`run_demo` writes first when OUTDIR is absent or empty (or already a demo output); only
 the demo's own entries (:data:`DEMO_OUTPUTS`) are removed before the new run, anything else in
 OUTDIR is left alone. A non-empty OUTDIR without the marker is refused
-(:class:`DemoOutdirError`) unless ``force=True``, which writes into it (files of the same
-name are replaced) without marking it.
+(:class:`~geoblock.errors.DemoOutdirError`) unless ``force=True``, which writes into it
+(files of the same name are replaced) without marking it.
 """
 
 from __future__ import annotations
 
 import math
 import os
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,7 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from geoblock.errors import GeoblockError
+from geoblock.errors import DemoOutdirError, GeoblockIOError
+from geoblock.io import open_dem, open_image, write_ortho
+from geoblock.io.files import make_directory, read_text, remove, save_figure, write_text
+from geoblock.pixels import image_domain
+from geoblock.simulate.presets import DEMO_SIZES
+from geoblock.simulate.scenario import demo_scenario
+from geoblock.workflows.scenario import ScenarioResult, footprint_rows, run_scenario
 
 __all__ = [
     "DEMO_MARKER",
@@ -39,15 +45,10 @@ __all__ = [
     "DEMO_SIZES",
     "DemoOutdirError",
     "DemoResult",
-    "demo_scenario",
     "is_demo_outdir",
     "prepare_demo_outdir",
     "run_demo",
 ]
-
-#: Sizes of the demo: ``small`` (the default: the teo2010-spot5 small preset) and ``tiny``
-#: (200 x 200 px strips at 300 m, a 200 m DEM: a few seconds, for tests).
-DEMO_SIZES = ("small", "tiny")
 
 #: The marker file :func:`run_demo` writes first in an OUTDIR it may replace on the next run.
 DEMO_MARKER = ".geoblock-demo"
@@ -65,14 +66,6 @@ Delete this file to protect the directory from being replaced.
 """
 
 
-class DemoOutdirError(GeoblockError):
-    """OUTDIR of the demo exists and is not a previous demo output (or is not a directory)."""
-
-    def __init__(self, message: str, path: Path) -> None:
-        super().__init__(message)
-        self.path = path
-
-
 def is_demo_outdir(outdir: str | os.PathLike[str]) -> bool:
     """Whether ``outdir`` is a directory written by a previous :func:`run_demo`.
 
@@ -88,10 +81,10 @@ def is_demo_outdir(outdir: str | os.PathLike[str]) -> bool:
     if not names or not names <= set(DEMO_OUTPUTS) or "report.md" not in names:
         return False
     try:
-        with open(path / "report.md", encoding="utf-8") as f:
-            return f.readline().strip() == "# geoblock demo"
-    except (OSError, UnicodeDecodeError):
+        text = read_text(path / "report.md")
+    except GeoblockIOError:  # unreadable, or not UTF-8: not a demo's report
         return False
+    return text.split("\n", 1)[0].strip() == "# geoblock demo"
 
 
 def prepare_demo_outdir(outdir: str | os.PathLike[str], *, force: bool = False) -> bool:
@@ -100,9 +93,9 @@ def prepare_demo_outdir(outdir: str | os.PathLike[str], *, force: bool = False) 
     * absent or empty: ready (marked);
     * a previous demo output (:func:`is_demo_outdir`): its :data:`DEMO_OUTPUTS` are removed
       (anything else is kept), ready (marked);
-    * any other non-empty directory: :class:`DemoOutdirError` naming it, unless ``force``
-      (written into, files of the same name replaced, not marked);
-    * not a directory: :class:`DemoOutdirError`.
+    * any other non-empty directory: :class:`~geoblock.errors.DemoOutdirError` naming it,
+      unless ``force`` (written into, files of the same name replaced, not marked);
+    * not a directory: :class:`~geoblock.errors.DemoOutdirError`.
     """
     path = Path(outdir)
     if (path.exists() or path.is_symlink()) and not path.is_dir():
@@ -111,11 +104,7 @@ def prepare_demo_outdir(outdir: str | os.PathLike[str], *, force: bool = False) 
         return True
     if is_demo_outdir(path):
         for name in DEMO_OUTPUTS:
-            entry = path / name
-            if entry.is_symlink() or entry.is_file():
-                entry.unlink()
-            elif entry.is_dir():
-                shutil.rmtree(entry)
+            remove(path / name, "previous demo output ")
         return True
     if force:
         return False
@@ -149,28 +138,8 @@ class DemoResult:
     quicklook: Path
     mosaic: Path
     orthos: dict[str, Path]
-    scenario: Any
+    scenario: ScenarioResult
     seconds: float
-
-
-def demo_scenario(size: str = "small", seed: int | None = None) -> Any:
-    """The demo's :class:`~geoblock.simulate.scenario.Scenario`."""
-    from geoblock.simulate.scenario import preset_dict, scenario_from_dict
-
-    if size not in DEMO_SIZES:
-        raise GeoblockError(f"demo: unknown size {size!r}; known: {', '.join(DEMO_SIZES)}")
-    data = preset_dict("teo2010-spot5", "small")
-    if size == "tiny":
-        for image in data["images"]:
-            image["scale"] = 120
-        data["terrain"]["resolution_m"] = 300.0
-        data["dems"] = [{"name": "dem200", "spacing_m": 200.0, "rmse_z": 10.0}]
-        data["points"].update(icp=9, tp=[8, 12], ictp=[4, 6])
-        data["name"] = "teo2010-spot5-tiny"
-    data["description"] += "; the geoblock demo"
-    if seed is not None:
-        data["seed"] = int(seed)
-    return scenario_from_dict(data, f"demo:{size}")
 
 
 def run_demo(
@@ -187,7 +156,7 @@ def run_demo(
     Files in ``outdir``: ``report.md``, ``quicklook.png``, ``mosaic.tif`` (feathered mosaic,
     UTM), ``contribution.tif`` (which strip each mosaic pixel came from), ``orthos/<id>.tif``
     and the simulated block in ``block/`` (see
-    :func:`~geoblock.simulate.scenario.run_scenario`), and the marker :data:`DEMO_MARKER`.
+    :func:`~geoblock.workflows.scenario.run_scenario`), and the marker :data:`DEMO_MARKER`.
     A previous demo's outputs in ``outdir`` are replaced; any other non-empty ``outdir`` is
     refused unless ``force`` (:func:`prepare_demo_outdir`).
 
@@ -208,26 +177,32 @@ def run_demo(
     Returns
     -------
     DemoResult
+
+    Raises
+    ------
+    DemoOutdirError
+        ``outdir`` is not a directory, or is a non-empty one that is not a demo output
+        (without ``force``); nothing is written.
+    ScenarioError
+        Unknown ``size``.
     """
     from geoblock import coords
-    from geoblock.io import open_dem, write_ortho
     from geoblock.ortho import OutputGrid, mosaic, orthorectify
     from geoblock.ortho.mosaic import open_ortho
-    from geoblock.simulate.scenario import run_scenario
 
     say = progress or (lambda message: None)
     start = time.perf_counter()
     out = Path(outdir)
     scenario = demo_scenario(size, seed)
     if prepare_demo_outdir(out, force=force):
-        out.mkdir(parents=True, exist_ok=True)
-        (out / DEMO_MARKER).write_text(_MARKER_TEXT, encoding="utf-8")
+        make_directory(out)
+        write_text(out / DEMO_MARKER, _MARKER_TEXT)
     say(f"[1/4] simulating {scenario.name}: {scenario.description}")
     sim = run_scenario(scenario, out / "block", progress=lambda m: say(f"      {m}"),
                        render=True)
 
     say("[2/4] orthorectifying each image with its ON-BOARD model on the measured DEM")
-    (out / "orthos").mkdir(parents=True, exist_ok=True)
+    make_directory(out / "orthos")
     dem = open_dem(str(sim.dem_path))
     specs = {im.id: im.spec for im in scenario.images}
     lon0 = float(np.mean([s.centre_lon for s in specs.values()]))
@@ -252,7 +227,7 @@ def run_demo(
     say("[4/4] report and quicklook")
     quicklook = _quicklook(mosaic_path, sim, dem, out / "quicklook.png", quicklook_width)
     seconds = time.perf_counter() - start
-    report = _report(out, sim, orthos, mosaic_path, quicklook, seconds)
+    report = write_text(out / "report.md", _report(sim, orthos, mosaic_path, quicklook, seconds))
     say(f"done in {seconds:.0f} s: {report}")
     return DemoResult(out, report, quicklook, mosaic_path, orthos, sim, seconds)
 
@@ -262,9 +237,8 @@ def _outline(model: Any, dem: Any, crs: Any, n: int = 24) -> tuple[np.ndarray, n
     from geoblock import coords
     from geoblock.dem import localize
 
-    rows, cols = model.shape
+    r0, c0, r1, c1 = image_domain(model.shape)
     t = np.linspace(0.0, 1.0, n, endpoint=False)
-    r0, r1, c0, c1 = -0.5, rows - 0.5, -0.5, cols - 0.5
     row = np.concatenate([np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1),
                           r1 - (r1 - r0) * t])
     col = np.concatenate([c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t,
@@ -275,29 +249,31 @@ def _outline(model: Any, dem: Any, crs: Any, n: int = 24) -> tuple[np.ndarray, n
     return np.append(x, x[:1]), np.append(y, y[:1])
 
 
-def _quicklook(mosaic_path: Path, sim: Any, dem: Any, path: Path, width: int) -> Path:
+def _quicklook(mosaic_path: Path, sim: ScenarioResult, dem: Any, path: Path,
+               width: int) -> Path:
     """A PNG of the mosaic (downsampled by block averages) with each strip's outline."""
     import pyproj
-    import rasterio
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from geoblock.report import save_figure
-
-    with rasterio.open(mosaic_path) as ds:
-        band = ds.read(1, masked=True)
-        transform = ds.transform
-        crs = pyproj.CRS.from_wkt(ds.crs.to_wkt())
+    source = open_image(mosaic_path)
+    band = source.read()[0]
+    values = band.astype(np.float64)
+    if source.nodata is not None:  # as a masked read: nodata pixels are no data
+        nodata = np.isnan(band) if np.isnan(source.nodata) else band == source.nodata
+        values[nodata] = np.nan
+    transform = source.transform
+    crs = pyproj.CRS.from_wkt(source.crs.to_wkt())
     rows, cols = band.shape
     step = max(1, math.ceil(cols / max(int(width), 1)))
     r, c = rows // step * step, cols // step * step
-    values = band.astype(np.float64).filled(np.nan)[:r, :c]
+    values = values[:r, :c]
     with np.errstate(invalid="ignore"):
         blocks = values.reshape(r // step, step, c // step, step)
         ok = np.isfinite(blocks).sum(axis=(1, 3))
         small = np.where(ok > 0, np.nansum(blocks, axis=(1, 3)) / np.maximum(ok, 1), np.nan)
     x0, y0 = transform.c, transform.f
-    extent = [x0 / 1e3, (x0 + c * transform.a) / 1e3, (y0 + r * transform.e) / 1e3, y0 / 1e3]
+    extent = (x0 / 1e3, (x0 + c * transform.a) / 1e3, (y0 + r * transform.e) / 1e3, y0 / 1e3)
     aspect = small.shape[0] / max(small.shape[1], 1)
     fig = Figure(figsize=(10.24, max(2.5, 10.24 * aspect + 1.2)), layout="constrained")
     FigureCanvasAgg(fig)
@@ -321,13 +297,13 @@ def _quicklook(mosaic_path: Path, sim: Any, dem: Any, path: Path, width: int) ->
     return save_figure(fig, path, dpi=100)
 
 
-def _report(out: Path, sim: Any, orthos: dict[str, Path], mosaic_path: Path, quicklook: Path,
-            seconds: float) -> Path:
+def _report(sim: ScenarioResult, orthos: dict[str, Path], mosaic_path: Path, quicklook: Path,
+            seconds: float) -> str:
+    """The demo's ``report.md``."""
     from geoblock.report import stats_table
-    from geoblock.simulate.scenario import _write_text, footprint_rows
 
     scenario = sim.scenario
-    fp = footprint_rows(sim.sensors, sim.truth)
+    fp = footprint_rows(sim.sensors)
     lines = [
         "# geoblock demo", "",
         f"{scenario.description}.", "",
@@ -367,4 +343,4 @@ def _report(out: Path, sim: Any, orthos: dict[str, Path], mosaic_path: Path, qui
     if sim.notes:
         lines += ["## Notes", "", *(f"- {n}" for n in sim.notes), ""]
     lines += [f"Made by `geoblock demo` in {seconds:.0f} s (seed {scenario.seed}).", ""]
-    return _write_text(out / "report.md", "\n".join(lines))
+    return "\n".join(lines)

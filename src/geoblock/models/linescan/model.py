@@ -1,41 +1,11 @@
-"""A generic state-vector pushbroom (line-scanner) model.
+"""The linescan sensor model: :class:`LinescanModel`, its parameters and parameter sets.
 
-A linear array of detectors images one row per exposure time while the satellite moves along
-its orbit. The model holds:
-
-* an :class:`Ephemeris`: time-tagged ECEF positions and velocities, interpolated by cubic
-  Hermite polynomials;
-* an :class:`Attitude`: time-tagged unit quaternions (sensor -> ECEF or sensor -> orbital
-  frame), interpolated by slerp;
-* :class:`LookDirections`: one unit look vector per detector (column) in the sensor frame;
-* :class:`LineTimes`: the exposure time of each row;
-
-and twelve adjustable parameters, bias and drift of the position (in the orbital frame) and of
-the attitude (small rotations about the sensor axes), the physical corrections of Teo et al.'s
-direct georeferencing and of Chen & Lee's bundle adjustment.
-
-Parameter sets (:meth:`LinescanModel.with_parameter_set`): ``"default"`` (the parameters as
-they are), ``"linescan"`` (the twelve, free) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
-direct-georeferencing correction, position biases and drifts and attitude biases with a-priori
-sigmas from the product's location accuracy, attitude rates fixed).
-
-Frames
-------
-* ECEF: EPSG:4978, metres.
-* Sensor (body) frame: +z the boresight (towards the ground), +x along track (the flight
-  direction at zero attitude), +y = z x x.
-* Orbital frame (LVLH, :func:`orbital_frame`): ``z_o = -P/|P|``, ``y_o = z_o x V / |.|``,
-  ``x_o = y_o x z_o``.
-
-Image -> ground intersects each line of sight with the surface of constant ellipsoidal height;
-ground -> image is a bracketed, safeguarded secant search on time for the instant the ground
-point lies in the detector plane (Chen & Lee eq. 5), vectorised over the points still active.
+See :mod:`geoblock.models.linescan` for the geometry and the frames.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -43,23 +13,22 @@ import numpy as np
 from geoblock import coords
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models.base import SensorModelBase
+from geoblock.models.linescan._checks import fail
+from geoblock.models.linescan.attitude import Attitude
+from geoblock.models.linescan.ephemeris import Ephemeris
+from geoblock.models.linescan.line_times import LineTimes
+from geoblock.models.linescan.look import LookDirections
+from geoblock.models.linescan.rotations import matrix_to_quaternion, orbital_frame, rotation_xyz
 from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
+from geoblock.pixels import image_domain
 from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = [
     "DG_ADJUSTABLE",
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
-    "Attitude",
-    "Ephemeris",
-    "LineTimes",
     "LinescanModel",
-    "LookDirections",
     "dg_parameters",
-    "matrix_to_quaternion",
-    "orbital_frame",
-    "quaternion_to_matrix",
-    "rotation_xyz",
 ]
 
 #: Names of the model's parameters, in order (see :class:`LinescanModel`).
@@ -83,502 +52,6 @@ _CONVERGED = np.uint8(Status.CONVERGED)
 _OUT = np.uint8(Status.OUT_OF_DOMAIN)
 
 
-# ==================================================================================== rotations
-def orbital_frame(position_m: ArrayLike, velocity_m_s: ArrayLike) -> Float64Array:
-    """The orbital (LVLH) frame of a satellite state.
-
-    Parameters
-    ----------
-    position_m : array_like, (..., 3)
-        ECEF position, metres.
-    velocity_m_s : array_like, (..., 3)
-        ECEF velocity, metres per second.
-
-    Returns
-    -------
-    ndarray, (..., 3, 3)
-        Columns ``x_o, y_o, z_o`` in ECEF: ``z_o = -P/|P|`` (towards the Earth's centre),
-        ``y_o = z_o x V / |z_o x V|``, ``x_o = y_o x z_o`` (about the flight direction). It maps
-        orbital-frame vectors to ECEF: ``v_ecef = M @ v_orb``.
-    """
-    p = np.asarray(position_m, dtype=np.float64)
-    v = np.asarray(velocity_m_s, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = -p / np.linalg.norm(p, axis=-1, keepdims=True)
-        y = np.cross(z, v)
-        y = y / np.linalg.norm(y, axis=-1, keepdims=True)
-    x = np.cross(y, z)
-    return np.stack([x, y, z], axis=-1)
-
-
-def quaternion_to_matrix(q: ArrayLike) -> Float64Array:
-    """Rotation matrices of quaternions ``(w, x, y, z)`` (Hamilton, active).
-
-    Parameters
-    ----------
-    q : array_like, (..., 4)
-        Quaternions, scalar first; normalised here.
-
-    Returns
-    -------
-    ndarray, (..., 3, 3)
-        ``R`` with ``v_target = R @ v_source``.
-    """
-    q = np.asarray(q, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    out = np.empty(q.shape[:-1] + (3, 3))
-    out[..., 0, 0] = 1.0 - 2.0 * (yy + zz)
-    out[..., 0, 1] = 2.0 * (xy - wz)
-    out[..., 0, 2] = 2.0 * (xz + wy)
-    out[..., 1, 0] = 2.0 * (xy + wz)
-    out[..., 1, 1] = 1.0 - 2.0 * (xx + zz)
-    out[..., 1, 2] = 2.0 * (yz - wx)
-    out[..., 2, 0] = 2.0 * (xz - wy)
-    out[..., 2, 1] = 2.0 * (yz + wx)
-    out[..., 2, 2] = 1.0 - 2.0 * (xx + yy)
-    return out
-
-
-def matrix_to_quaternion(r: ArrayLike) -> Float64Array:
-    """Unit quaternions ``(w, x, y, z)`` of rotation matrices (inverse of
-    :func:`quaternion_to_matrix`), with ``w >= 0``.
-
-    Parameters
-    ----------
-    r : array_like, (..., 3, 3)
-        Rotation matrices.
-
-    Returns
-    -------
-    ndarray, (..., 4)
-    """
-    r = np.asarray(r, dtype=np.float64)
-    m00, m11, m22 = r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]
-    # Shepperd: build from the largest of 4w^2, 4x^2, 4y^2, 4z^2 for numerical stability
-    cands = np.stack([
-        np.stack([1 + m00 + m11 + m22, r[..., 2, 1] - r[..., 1, 2],
-                  r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1),
-        np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + m00 - m11 - m22,
-                  r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0]], axis=-1),
-        np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0],
-                  1 - m00 + m11 - m22, r[..., 1, 2] + r[..., 2, 1]], axis=-1),
-        np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0],
-                  r[..., 1, 2] + r[..., 2, 1], 1 - m00 - m11 + m22], axis=-1),
-    ], axis=-2)  # (..., 4 candidates, 4 components); candidate k has 4 q_k^2 at index k
-    diag = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22,
-                     1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=-1)
-    k = np.argmax(diag, axis=-1)
-    q = np.take_along_axis(cands, k[..., None, None], axis=-2)[..., 0, :]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., :1] < 0, -q, q)
-
-
-def rotation_xyz(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> Float64Array:
-    """``Rx(roll) @ Ry(pitch) @ Rz(yaw)``, angles in radians, (..., 3, 3)."""
-    a, b, c = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (roll, pitch, yaw)))
-    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
-    out = np.empty(a.shape + (3, 3))
-    # Rx @ Ry @ Rz written out
-    out[..., 0, 0] = cb * cc
-    out[..., 0, 1] = -cb * sc
-    out[..., 0, 2] = sb
-    out[..., 1, 0] = sa * sb * cc + ca * sc
-    out[..., 1, 1] = -sa * sb * sc + ca * cc
-    out[..., 1, 2] = -sa * cb
-    out[..., 2, 0] = -ca * sb * cc + sa * sc
-    out[..., 2, 1] = ca * sb * sc + sa * cc
-    out[..., 2, 2] = ca * cb
-    return out
-
-
-# ==================================================================================== helpers
-def _fail(where: str, message: str) -> ModelFormatError:
-    return ModelFormatError(f"{where}: {message}")
-
-
-def _array(value: Any, where: str, shape_tail: tuple[int, ...], min_len: int) -> np.ndarray:
-    """A read-only float64 copy of ``value`` of shape ``(n, *shape_tail)``, finite, n >= min_len."""
-    try:
-        a = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise _fail(where, f"must be numeric ({exc})") from None
-    if a.ndim != 1 + len(shape_tail) or a.shape[1:] != shape_tail:
-        want = "(n" + "".join(f", {k}" for k in shape_tail) + ")"
-        raise _fail(where, f"must have shape {want}, got {a.shape}")
-    if a.shape[0] < min_len:
-        raise _fail(where, f"needs at least {min_len} samples, got {a.shape[0]}")
-    if not np.all(np.isfinite(a)):
-        i = int(np.flatnonzero(~np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1))[0])
-        raise _fail(where, f"has non-finite values (sample {i})")
-    a.flags.writeable = False
-    return a
-
-
-def _increasing(t: np.ndarray, where: str) -> None:
-    dt = np.diff(t)
-    if np.any(~(dt > 0)):
-        i = int(np.flatnonzero(~(dt > 0))[0])
-        raise _fail(where, f"must be strictly increasing (time_s[{i + 1}] = {t[i + 1]!r} <= "
-                           f"time_s[{i}] = {t[i]!r})")
-
-
-#: distances of a platform from the Earth's centre accepted in an ephemeris, metres (from
-#: below the surface's highest point plus a low airborne platform to beyond geostationary)
-ORBIT_RADIUS_M = (6.35e6, 5.0e7)
-#: largest platform speed accepted in an ephemeris, metres per second (low orbits ~7.6 km/s)
-MAX_SPEED_M_S = 2.0e4
-
-
-def _segment(times: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Interval index i (clipped to the end intervals), fraction s and its width, for times t."""
-    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
-    width = times[i + 1] - times[i]
-    return i, (t - times[i]) / width, width
-
-
-# ==================================================================================== ephemeris
-@dataclass(frozen=True, eq=False)
-class Ephemeris:
-    """Time-tagged satellite positions and velocities (ECEF), Hermite-interpolated.
-
-    Parameters
-    ----------
-    time_s : array_like, (n,)
-        Strictly increasing, seconds since the model's epoch; n >= 2.
-    position_m : array_like, (n, 3)
-        ECEF positions, metres.
-    velocity_m_s : array_like, (n, 3)
-        ECEF (Earth-fixed) velocities, metres per second.
-    """
-
-    time_s: np.ndarray
-    position_m: np.ndarray
-    velocity_m_s: np.ndarray
-    _coefficients: np.ndarray = field(init=False, repr=False)
-    _inv_width: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        t = _array(self.time_s, "Ephemeris.time_s", (), 2)
-        n = t.shape[0]
-        p = _array(self.position_m, "Ephemeris.position_m", (3,), 2)
-        v = _array(self.velocity_m_s, "Ephemeris.velocity_m_s", (3,), 2)
-        for name, a in (("position_m", p), ("velocity_m_s", v)):
-            if a.shape[0] != n:
-                raise _fail(f"Ephemeris.{name}", f"has {a.shape[0]} samples, time_s has {n}")
-        _increasing(t, "Ephemeris.time_s")
-        radius = np.linalg.norm(p, axis=1)
-        bad = ~((radius >= ORBIT_RADIUS_M[0]) & (radius <= ORBIT_RADIUS_M[1]))
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise _fail("Ephemeris.position_m",
-                        f"sample {i} is {radius[i]:.6g} m from the Earth's centre: not an orbit "
-                        f"(expected {ORBIT_RADIUS_M[0]:g} to {ORBIT_RADIUS_M[1]:g} m)")
-        speed = np.linalg.norm(v, axis=1)
-        bad = ~(speed <= MAX_SPEED_M_S)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise _fail("Ephemeris.velocity_m_s",
-                        f"sample {i} has a speed of {speed[i]:.6g} m/s (more than "
-                        f"{MAX_SPEED_M_S:g} m/s: not an Earth-orbiting platform)")
-        object.__setattr__(self, "time_s", t)
-        object.__setattr__(self, "position_m", p)
-        object.__setattr__(self, "velocity_m_s", v)
-        # Hermite polynomial of each interval in s = (t - t_i) / h: P = c0 + c1 s + c2 s^2 + c3 s^3
-        h = np.diff(t)[:, None]
-        p0, p1, v0, v1 = p[:-1], p[1:], v[:-1] * h, v[1:] * h
-        coefficients = np.stack(
-            [p0, v0, 3.0 * (p1 - p0) - 2.0 * v0 - v1, 2.0 * (p0 - p1) + v0 + v1], axis=1)
-        object.__setattr__(self, "_coefficients", coefficients)
-        object.__setattr__(self, "_inv_width", 1.0 / h[:, 0])
-
-    @property
-    def valid_span_s(self) -> tuple[float, float]:
-        """``(t_min, t_max)``: where :meth:`at` is finite (the samples plus one interval)."""
-        t = self.time_s
-        return float(t[0] - (t[1] - t[0])), float(t[-1] + (t[-1] - t[-2]))
-
-    def at(self, t_s: ArrayLike) -> tuple[Float64Array, Float64Array]:
-        """Position and velocity at times ``t_s`` by cubic Hermite interpolation.
-
-        Parameters
-        ----------
-        t_s : array_like, (...)
-            Seconds since the epoch.
-
-        Returns
-        -------
-        position_m, velocity_m_s : ndarray, (..., 3)
-            ECEF. Exact at the samples, C1 between them; extrapolated by the end
-            polynomials up to one sample interval beyond the ends, NaN farther.
-        """
-        t = np.asarray(t_s, dtype=np.float64)
-        shape = t.shape
-        t = t.ravel()
-        i, s, _ = _segment(self.time_s, t)
-        c = self._coefficients[i]  # (N, 4, 3)
-        s_ = s[:, None]
-        pos = c[:, 0] + s_ * (c[:, 1] + s_ * (c[:, 2] + s_ * c[:, 3]))
-        vel = (c[:, 1] + s_ * (2.0 * c[:, 2] + 3.0 * s_ * c[:, 3])) * self._inv_width[i, None]
-        lo, hi = self.valid_span_s
-        bad = ~((t >= lo) & (t <= hi))
-        pos[bad] = np.nan
-        vel[bad] = np.nan
-        return pos.reshape(shape + (3,)), vel.reshape(shape + (3,))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dictionary."""
-        return {"time_s": self.time_s.tolist(), "position_m": self.position_m.tolist(),
-                "velocity_m_s": self.velocity_m_s.tolist()}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Ephemeris:
-        """Inverse of :meth:`to_dict`."""
-        return cls(data["time_s"], data["position_m"], data["velocity_m_s"])
-
-
-# ==================================================================================== attitude
-@dataclass(frozen=True, eq=False)
-class Attitude:
-    """Time-tagged attitude quaternions, slerp-interpolated.
-
-    Parameters
-    ----------
-    time_s : array_like, (m,)
-        Strictly increasing, seconds since the epoch; m >= 1 (1: constant attitude).
-    quaternion : array_like, (m, 4)
-        ``(w, x, y, z)`` unit quaternions: ``v_frame = R(q) @ v_sensor``.
-    frame : {"ecef", "orbital"}
-        The frame the quaternions rotate sensor vectors into (``"orbital"``: the frame of
-        :func:`orbital_frame` at the same time).
-    """
-
-    time_s: np.ndarray
-    quaternion: np.ndarray
-    frame: str = "ecef"
-    _unit: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        t = _array(self.time_s, "Attitude.time_s", (), 1)
-        q = _array(self.quaternion, "Attitude.quaternion", (4,), 1)
-        if q.shape[0] != t.shape[0]:
-            raise _fail("Attitude.quaternion", f"has {q.shape[0]} samples, time_s has {t.shape[0]}")
-        _increasing(t, "Attitude.time_s")
-        norm = np.linalg.norm(q, axis=1)
-        if np.any(~(np.abs(norm - 1.0) < 1e-3)):
-            i = int(np.flatnonzero(~(np.abs(norm - 1.0) < 1e-3))[0])
-            raise _fail("Attitude.quaternion", f"sample {i} is not a unit quaternion (norm "
-                                               f"{norm[i]!r})")
-        if self.frame not in ("ecef", "orbital"):
-            raise _fail("Attitude.frame", f"must be 'ecef' or 'orbital', got {self.frame!r}")
-        unit = q / norm[:, None]
-        # sign-align consecutive samples so that slerp takes the short way
-        flips = np.concatenate([[1.0], np.sign(np.sum(unit[1:] * unit[:-1], axis=1))])
-        flips[flips == 0] = 1.0
-        unit = unit * np.cumprod(flips)[:, None]
-        object.__setattr__(self, "time_s", t)
-        object.__setattr__(self, "quaternion", q)
-        object.__setattr__(self, "_unit", unit)
-
-    @property
-    def valid_span_s(self) -> tuple[float, float]:
-        """``(t_min, t_max)`` where :meth:`matrix` is finite (unbounded for one sample)."""
-        t = self.time_s
-        if t.size == 1:
-            return -np.inf, np.inf
-        return float(t[0] - (t[1] - t[0])), float(t[-1] + (t[-1] - t[-2]))
-
-    def quaternion_at(self, t_s: ArrayLike) -> Float64Array:
-        """Interpolated unit quaternions (..., 4) at ``t_s`` (slerp; NaN outside the span)."""
-        t = np.asarray(t_s, dtype=np.float64)
-        shape = t.shape
-        t = t.ravel()
-        if self.time_s.size == 1:
-            q = np.broadcast_to(self._unit[0], (t.size, 4)).copy()
-        else:
-            i, s, _ = _segment(self.time_s, t)
-            s = np.clip(s, 0.0, 1.0)  # hold the end values
-            q0, q1 = self._unit[i], self._unit[i + 1]
-            cos = np.clip(np.sum(q0 * q1, axis=1), -1.0, 1.0)
-            theta = np.arccos(cos)
-            small = theta < 1e-6
-            sin = np.where(small, 1.0, np.sin(theta))
-            w0 = np.where(small, 1.0 - s, np.sin((1.0 - s) * theta) / sin)
-            w1 = np.where(small, s, np.sin(s * theta) / sin)
-            q = w0[:, None] * q0 + w1[:, None] * q1
-            q /= np.linalg.norm(q, axis=1, keepdims=True)
-        lo, hi = self.valid_span_s
-        q[~((t >= lo) & (t <= hi))] = np.nan
-        return q.reshape(shape + (4,))
-
-    def matrix(self, t_s: ArrayLike) -> Float64Array:
-        """Sensor -> ``frame`` rotation matrices (..., 3, 3) at ``t_s`` (slerp between samples).
-
-        Held constant up to one sample interval beyond the ends, NaN farther.
-        """
-        return quaternion_to_matrix(self.quaternion_at(t_s))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dictionary."""
-        return {"time_s": self.time_s.tolist(), "quaternion": self.quaternion.tolist(),
-                "frame": self.frame}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Attitude:
-        """Inverse of :meth:`to_dict`."""
-        return cls(data["time_s"], data["quaternion"], data.get("frame", "ecef"))
-
-
-# ==================================================================================== detectors
-@dataclass(frozen=True, eq=False)
-class LookDirections:
-    """One look vector per detector (image column) in the sensor frame.
-
-    Parameters
-    ----------
-    vectors : array_like, (cols, 3)
-        Look vectors in the sensor frame (+z boresight, +x along track, +y across), one per
-        column, cols >= 2; normalised here if they are not unit vectors. The across-track
-        tangents ``v_y / v_z`` must be strictly monotonic and ``v_z > 0``.
-
-    Notes
-    -----
-    Between detectors the look vector is the linear interpolation of the two neighbours'
-    vectors, normalised; beyond the ends, the end segments extend linearly.
-    """
-
-    vectors: np.ndarray
-    _tan_y: np.ndarray = field(init=False, repr=False)
-    _ascending: bool = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        v = np.array(_array(self.vectors, "LookDirections.vectors", (3,), 2))
-        norm = np.linalg.norm(v, axis=1)
-        if np.any(~(np.abs(norm - 1.0) <= 1e-12)):
-            if np.any(~(norm > 0)):
-                raise _fail("LookDirections.vectors", "has zero vectors")
-            v = v / norm[:, None]
-        if np.any(~(v[:, 2] > 0)):
-            i = int(np.flatnonzero(~(v[:, 2] > 0))[0])
-            raise _fail("LookDirections.vectors",
-                        f"detector {i} does not look down the boresight (z = {v[i, 2]!r} <= 0)")
-        tan_y = v[:, 1] / v[:, 2]
-        d = np.diff(tan_y)
-        if not (np.all(d > 0) or np.all(d < 0)):
-            raise _fail("LookDirections.vectors",
-                        "the across-track tangents v_y / v_z must be strictly monotonic in col")
-        v.flags.writeable = False
-        object.__setattr__(self, "vectors", v)
-        object.__setattr__(self, "_ascending", bool(d[0] > 0))
-        object.__setattr__(self, "_tan_y", tan_y if d[0] > 0 else -tan_y)
-
-    @classmethod
-    def from_tan_angles(cls, tan_x: ArrayLike, tan_y: ArrayLike) -> LookDirections:
-        """Look vectors ``(tan_x, tan_y, 1)`` normalised, from focal-plane tangents (cols,)."""
-        tx, ty = np.broadcast_arrays(np.asarray(tan_x, np.float64), np.asarray(tan_y, np.float64))
-        v = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
-        return cls(v / np.linalg.norm(v, axis=-1, keepdims=True))
-
-    @property
-    def cols(self) -> int:
-        """Number of detectors."""
-        return int(self.vectors.shape[0])
-
-    def at(self, col: ArrayLike) -> Float64Array:
-        """Unit look vectors (..., 3) at columns ``col`` (0-based pixel centres)."""
-        c = np.asarray(col, dtype=np.float64)
-        i = np.clip(np.floor(c), 0, self.cols - 2)
-        i = np.where(np.isfinite(i), i, 0).astype(np.intp)
-        a = (c - i)[..., None]
-        v = (1.0 - a) * self.vectors[i] + a * self.vectors[i + 1]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-    def _invert(self, ratio_y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Column whose look vector has ``v_y / v_z == ratio_y``; its ``v_x / v_z`` and
-        ``d(v_x/v_z)/dcol``, ``d(v_y/v_z)/dcol``. Exact inverse of :meth:`at`."""
-        key = ratio_y if self._ascending else -ratio_y
-        i = np.clip(np.searchsorted(self._tan_y, key) - 1, 0, self.cols - 2)
-        v0, v1 = self.vectors[i], self.vectors[i + 1]
-        dv = v1 - v0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            a = (v0[:, 1] - ratio_y * v0[:, 2]) / (ratio_y * dv[:, 2] - dv[:, 1])
-            vz = v0[:, 2] + a * dv[:, 2]
-            vx = v0[:, 0] + a * dv[:, 0]
-            tx = vx / vz
-            dtx = (dv[:, 0] * v0[:, 2] - v0[:, 0] * dv[:, 2]) / (vz * vz)
-            dty = (dv[:, 1] * v0[:, 2] - v0[:, 1] * dv[:, 2]) / (vz * vz)
-        return i + a, tx, np.stack([dtx, dty], axis=-1)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dictionary."""
-        return {"vectors": self.vectors.tolist()}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> LookDirections:
-        """Inverse of :meth:`to_dict`."""
-        return cls(data["vectors"])
-
-
-# ==================================================================================== line times
-@dataclass(frozen=True)
-class LineTimes:
-    """Exposure time of each row: a constant line period.
-
-    Parameters
-    ----------
-    reference_row : float
-        Row (0-based pixel centre) exposed at ``reference_time_s``.
-    reference_time_s : float
-        Seconds since the epoch.
-    line_period_s : float
-        Seconds per row, > 0.
-    """
-
-    reference_row: float
-    reference_time_s: float
-    line_period_s: float
-
-    def __post_init__(self) -> None:
-        for name in ("reference_row", "reference_time_s", "line_period_s"):
-            try:
-                value = float(getattr(self, name))
-            except (TypeError, ValueError):
-                raise _fail(f"LineTimes.{name}", f"must be a number, got "
-                                                 f"{getattr(self, name)!r}") from None
-            if not np.isfinite(value):
-                raise _fail(f"LineTimes.{name}", f"must be finite, got {value!r}")
-            object.__setattr__(self, name, value)
-        if not self.line_period_s > 0:
-            raise _fail("LineTimes.line_period_s", f"must be > 0, got {self.line_period_s!r}")
-
-    def time(self, row: ArrayLike) -> Float64Array:
-        """Seconds since the epoch at which ``row`` is exposed."""
-        return self.reference_time_s + (np.asarray(row, np.float64) - self.reference_row) * (
-            self.line_period_s)
-
-    def row(self, t_s: ArrayLike) -> Float64Array:
-        """Row exposed at ``t_s`` seconds since the epoch (inverse of :meth:`time`)."""
-        return self.reference_row + (np.asarray(t_s, np.float64) - self.reference_time_s) / (
-            self.line_period_s)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dictionary."""
-        return {"reference_row": self.reference_row, "reference_time_s": self.reference_time_s,
-                "line_period_s": self.line_period_s}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> LineTimes:
-        """Inverse of :meth:`to_dict`."""
-        return cls(data["reference_row"], data["reference_time_s"], data["line_period_s"])
-
-
-# ==================================================================================== the model
 class LinescanModel(SensorModelBase):
     """A pushbroom sensor from ephemeris, attitude, detector look directions and line times.
 
@@ -655,40 +128,40 @@ class LinescanModel(SensorModelBase):
         try:
             rows, cols = (int(v) for v in shape)
         except (TypeError, ValueError):
-            raise _fail("LinescanModel.shape", f"must be (rows, cols), got {shape!r}") from None
+            raise fail("LinescanModel.shape", f"must be (rows, cols), got {shape!r}") from None
         if rows < 1 or cols < 2:
-            raise _fail("LinescanModel.shape", f"must be >= (1, 2), got {(rows, cols)}")
+            raise fail("LinescanModel.shape", f"must be >= (1, 2), got {(rows, cols)}")
         for name, value, kind in (("ephemeris", ephemeris, Ephemeris),
                                   ("attitude", attitude, Attitude),
                                   ("look", look, LookDirections),
                                   ("line_times", line_times, LineTimes)):
             if not isinstance(value, kind):
-                raise _fail(f"LinescanModel.{name}",
+                raise fail(f"LinescanModel.{name}",
                             f"must be a {kind.__name__}, got {type(value).__name__}")
         if look.cols != cols:
-            raise _fail("LinescanModel.look", f"look-direction table has {look.cols} detectors, "
+            raise fail("LinescanModel.look", f"look-direction table has {look.cols} detectors, "
                                               f"the image has {cols} columns")
         try:
             if isinstance(height_range, (str, bytes)):
                 raise TypeError
             h0, h1 = (float(v) for v in height_range)
         except (TypeError, ValueError):
-            raise _fail("LinescanModel.height_range", f"must be two heights (h_min, h_max) in "
+            raise fail("LinescanModel.height_range", f"must be two heights (h_min, h_max) in "
                                                       f"metres, got {height_range!r}") from None
         if not (np.isfinite(h0) and np.isfinite(h1) and h0 < h1):
-            raise _fail("LinescanModel.height_range", f"must be finite with h_min < h_max, got "
+            raise fail("LinescanModel.height_range", f"must be finite with h_min < h_max, got "
                                                       f"{(h0, h1)}")
         if parameters is None:
             parameters = ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS)
         if not isinstance(parameters, ParameterSet):
-            raise _fail("LinescanModel.parameters",
+            raise fail("LinescanModel.parameters",
                         f"must be a ParameterSet, got {type(parameters).__name__}")
         unknown = [n for n in parameters.names if n not in PARAMETER_NAMES]
         if unknown:
-            raise _fail("LinescanModel.parameters",
+            raise fail("LinescanModel.parameters",
                         f"unknown parameter names {unknown}; known: {list(PARAMETER_NAMES)}")
         if not np.all(np.isfinite(parameters.values)):
-            raise _fail("LinescanModel.parameters", "values must be finite")
+            raise fail("LinescanModel.parameters", "values must be finite")
         if location_accuracy_m is not None:
             location_accuracy_m = location_accuracy(
                 location_accuracy_m, "LinescanModel.location_accuracy_m (or None)")
@@ -756,17 +229,19 @@ class LinescanModel(SensorModelBase):
     def replace(self, **changes: Any) -> Self:
         """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``,
         ``location_accuracy_m=...``)."""
-        args = {"shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
-                "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
-                "height_range": self._height_range, "parameters": self._parameters,
-                "location_accuracy_m": self._location_accuracy_m}
+        args: dict[str, Any] = {
+            "shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
+            "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
+            "height_range": self._height_range, "parameters": self._parameters,
+            "location_accuracy_m": self._location_accuracy_m}
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"replace: unknown fields {sorted(unknown)}")
         args.update(changes)
-        shape = args.pop("shape")
-        eph, att, look, lt = (args.pop(k) for k in ("ephemeris", "attitude", "look", "line_times"))
-        return type(self)(shape, eph, att, look, lt, **args)
+        return type(self)(
+            args["shape"], args["ephemeris"], args["attitude"], args["look"], args["line_times"],
+            epoch=args["epoch"], height_range=args["height_range"],
+            parameters=args["parameters"], location_accuracy_m=args["location_accuracy_m"])
 
     # ------------------------------------------------------------------ parameter sets
     def with_parameter_set(self, name: str, **options: Any) -> Self:
@@ -920,8 +395,9 @@ class LinescanModel(SensorModelBase):
         rows = self._shape[0]
         margin = max(self.search_margin_fraction * rows,
                      self.search_margin_s / self._line_times.line_period_s)
+        first, _, last, _ = image_domain(self._shape)  # the image's outer edges, rows
         t0, t1 = sorted(float(v) for v in self._line_times.time(
-            np.array([-0.5 - margin, rows - 0.5 + margin])))
+            np.array([first - margin, last + margin])))
         e0, e1 = self._ephemeris.valid_span_s
         a0, a1 = self._attitude.valid_span_s
         return max(t0, e0, a0), min(t1, e1, a1)
@@ -961,7 +437,7 @@ class LinescanModel(SensorModelBase):
             d = np.einsum("nji,nj->ni", rot, diff)
         with np.errstate(invalid="ignore", divide="ignore"):
             ry = d[:, 1] / d[:, 2]
-            col, tx, _ = self._look._invert(ry)
+            col, tx, _ = self._look.invert(ry)
             f = d[:, 0] / d[:, 2] - tx
         return f, col, d
 
@@ -1063,7 +539,9 @@ class LinescanModel(SensorModelBase):
     #: time step (seconds) of the central difference giving d(residual)/dt in the partials
     partials_time_step_s: ClassVar[float] = 1e-4
 
-    def _implicit(self, lon, lat, h):
+    def _implicit(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[
+            tuple[int, ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+            np.ndarray]:
         """Solve the point, then the (N, 2, 2) Jacobian of (E1, E2) in (t, col) and pieces."""
         lon, lat, h = (np.asarray(v, np.float64) for v in np.broadcast_arrays(lon, lat, h))
         shape = lon.shape
@@ -1082,7 +560,7 @@ class LinescanModel(SensorModelBase):
             de_dd[:, 0, 2] = -d[:, 0] / (dz * dz)
             de_dd[:, 1, 1] = 1.0 / dz
             de_dd[:, 1, 2] = -d[:, 1] / (dz * dz)
-            _, _, dtan = self._look._invert(d[:, 1] / dz)
+            _, _, dtan = self._look.invert(d[:, 1] / dz)
             # d(E)/dt at fixed G and col: central difference of the sensor-frame ratios
             step = self.partials_time_step_s
             ratios = []

@@ -1,0 +1,86 @@
+"""A generic state-vector pushbroom (line-scanner) model.
+
+A linear array of detectors images one row per exposure time while the satellite moves along
+its orbit. The model holds:
+
+* an :class:`Ephemeris`: time-tagged ECEF positions and velocities, interpolated by cubic
+  Hermite polynomials;
+* an :class:`Attitude`: time-tagged unit quaternions (sensor -> ECEF or sensor -> orbital
+  frame), interpolated by slerp;
+* :class:`LookDirections`: one unit look vector per detector (column) in the sensor frame;
+* :class:`LineTimes`: the exposure time of each row;
+
+and twelve adjustable parameters, bias and drift of the position (in the orbital frame) and of
+the attitude (small rotations about the sensor axes), the physical corrections of Teo et al.'s
+direct georeferencing and of Chen & Lee's bundle adjustment.
+
+Parameter sets (:meth:`LinescanModel.with_parameter_set`): ``"default"`` (the parameters as
+they are), ``"linescan"`` (the twelve, free) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
+direct-georeferencing correction, position biases and drifts and attitude biases with a-priori
+sigmas from the product's location accuracy, attitude rates fixed).
+
+Frames
+------
+* ECEF: EPSG:4978, metres.
+* Sensor (body) frame: +z the boresight (towards the ground), +x along track (the flight
+  direction at zero attitude), +y = z x x.
+* Orbital frame (LVLH, :func:`orbital_frame`): ``z_o = -P/|P|``, ``y_o = z_o x V / |.|``,
+  ``x_o = y_o x z_o``.
+
+Image -> ground intersects each line of sight with the surface of constant ellipsoidal height;
+ground -> image is a bracketed, safeguarded secant search on time for the instant the ground
+point lies in the detector plane (Chen & Lee eq. 5), vectorised over the points still active.
+
+The building blocks are public, one module each, for readers of pushbroom products (SPOT,
+Pleiades, DigitalGlobe ... and third-party sensors) that assemble a :class:`LinescanModel`
+from their metadata:
+
+* :mod:`~geoblock.models.linescan.rotations`: quaternions <-> matrices, :func:`rotation_xyz`,
+  :func:`orbital_frame`;
+* :mod:`~geoblock.models.linescan.ephemeris`: :class:`Ephemeris` (and its plausibility limits
+  ``ORBIT_RADIUS_M``, ``MAX_SPEED_M_S``);
+* :mod:`~geoblock.models.linescan.attitude`: :class:`Attitude`;
+* :mod:`~geoblock.models.linescan.look`: :class:`LookDirections`;
+* :mod:`~geoblock.models.linescan.line_times`: :class:`LineTimes`;
+* :mod:`~geoblock.models.linescan.model`: :class:`LinescanModel`, :data:`PARAMETER_NAMES`,
+  :func:`dg_parameters`.
+
+Every name is importable from ``geoblock.models.linescan`` itself.
+"""
+
+
+from geoblock.models.linescan.attitude import Attitude
+from geoblock.models.linescan.ephemeris import MAX_SPEED_M_S, ORBIT_RADIUS_M, Ephemeris
+from geoblock.models.linescan.line_times import LineTimes
+from geoblock.models.linescan.look import LookDirections
+from geoblock.models.linescan.model import (
+    DG_ADJUSTABLE,
+    PARAMETER_NAMES,
+    PARAMETER_UNITS,
+    LinescanModel,
+    dg_parameters,
+)
+from geoblock.models.linescan.rotations import (
+    matrix_to_quaternion,
+    orbital_frame,
+    quaternion_to_matrix,
+    rotation_xyz,
+)
+
+__all__ = [
+    "DG_ADJUSTABLE",
+    "MAX_SPEED_M_S",
+    "ORBIT_RADIUS_M",
+    "PARAMETER_NAMES",
+    "PARAMETER_UNITS",
+    "Attitude",
+    "Ephemeris",
+    "LineTimes",
+    "LinescanModel",
+    "LookDirections",
+    "dg_parameters",
+    "matrix_to_quaternion",
+    "orbital_frame",
+    "quaternion_to_matrix",
+    "rotation_xyz",
+]
