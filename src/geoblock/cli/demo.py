@@ -18,7 +18,7 @@ __all__ = ["demo"]
 @click.option("--force", is_flag=True, default=False,
               help="Write into a non-empty OUTDIR that is not a previous demo's output (files "
               "of the same name are replaced; the directory is not marked as a demo output).")
-def demo(outdir, size, seed, force) -> None:
+def demo(outdir: str, size: str, seed: int | None, force: bool) -> None:
     """geoblock's main job on built-in data: simulate, orthorectify, mosaic, report.
 
     Simulates a small block like Teo et al.'s (the teo2010-spot5 preset, small variant: three

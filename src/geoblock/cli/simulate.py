@@ -48,7 +48,8 @@ def check_outdir(outdir: str, force: bool) -> Path:
               help="Write into a non-empty OUTDIR (files of the same name are replaced).")
 @click.option("--list", "list_presets", is_flag=True, is_eager=True, expose_value=False,
               callback=_list_presets, help="List the scenario presets and exit.")
-def simulate(scenario, outdir, variant, seed, no_images, force) -> None:
+def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, no_images: bool,
+             force: bool) -> None:
     """Simulate the block SCENARIO into OUTDIR: a preset name or a scenario TOML file.
 
     Writes the true terrain and the measured DEM(s) (GeoTIFF), per image the true and the

@@ -119,10 +119,10 @@ class ImageSource:
         # kept open per thread: one window per ortho/mosaic chunk, no open per read
         return read_window(self.path, window, what="the image ")
 
-    def __dask_tokenize__(self) -> tuple:
+    def __dask_tokenize__(self) -> tuple[object, ...]:
         try:
             st = os.stat(self.path)
-            stamp: tuple = (st.st_size, st.st_mtime_ns)
+            stamp: tuple[int, int] | tuple[()] = (st.st_size, st.st_mtime_ns)
         except OSError:
             stamp = ()
         return ("ImageSource", self.path, self.shape, self.bands, self.dtype, self.nodata,
@@ -205,7 +205,7 @@ class ArrayImage:
         r0, r1, c0, c1 = (int(v) for v in window)
         return self.array[:, r0:r1, c0:c1].copy()
 
-    def __dask_tokenize__(self) -> tuple:
+    def __dask_tokenize__(self) -> tuple[object, ...]:
         from dask.base import tokenize
 
         return ("ArrayImage", tokenize(self.array), self.nodata, self.crop_offset,
@@ -473,14 +473,14 @@ def _compute_one(delayed: Any) -> Any:
     return dask.compute(delayed, scheduler="synchronous")[0]
 
 
-def _in_order(items: list, in_flight: int, submit: Any, result: Any,
+def _in_order(items: list[tuple[int, int, Any]], in_flight: int, submit: Any, result: Any,
               drop: Any) -> Iterator[tuple[int, int, Any]]:
     """Yield ``(row0, col0, block)`` of ``items`` (``(row0, col0, delayed)``) in their order,
     with up to ``in_flight`` of them submitted ahead of the one yielded: ``submit(delayed)``
     starts a computation and returns its handle, ``result(handle)`` waits for its block,
     ``drop(handle)`` abandons one still in flight (when the consumer stops early)."""
     pending = deque(items)
-    window: deque = deque()  # (handle, row0, col0), in ``items`` order
+    window: deque[tuple[Any, int, int]] = deque()  # (handle, row0, col0), in ``items`` order
     try:
         while pending and len(window) < in_flight:
             r0, c0, d = pending.popleft()
@@ -497,7 +497,8 @@ def _in_order(items: list, in_flight: int, submit: Any, result: Any,
             drop(handle)
 
 
-def _iter_threads(items: list, in_flight: int, bar: Any) -> Iterator[tuple[int, int, Any]]:
+def _iter_threads(items: list[tuple[int, int, Any]], in_flight: int,
+                  bar: Any) -> Iterator[tuple[int, int, Any]]:
     """:func:`_iter_blocks` on a thread pool: up to ``in_flight`` chunks computed ahead of the
     one yielded, yielded in ``items`` order."""
     import concurrent.futures as cf
@@ -534,7 +535,8 @@ class _TileRows:
         self.strip = np.empty((bands, min(blocksize, rows), cols), dtype)
         self.top = 0      # first row of the tile row being filled
         self.filled = 0   # rows of it already filled
-        self.band: list = []  # the chunks of the current chunk row: (col0, block)
+        # the chunks of the current chunk row: (col0, block)
+        self.band: list[tuple[int, np.ndarray]] = []
         self.band_r0 = 0
 
     def add(self, r0: int, c0: int, block: np.ndarray) -> None:

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -526,7 +526,9 @@ class OutputGrid:
     def __hash__(self) -> int:
         return hash(self._key())
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(
+        self,
+    ) -> tuple[Callable[[Mapping[str, Any]], OutputGrid], tuple[dict[str, Any]]]:
         return (type(self).from_dict, (self.to_dict(),))
 
     def __dask_tokenize__(self) -> tuple[str, str]:

@@ -83,8 +83,8 @@ class LatticeInfo:
         Model evaluations at lattice nodes, check points and fallbacks.
     """
 
-    spacing: dict = field(default_factory=dict)
-    check_error_px: dict = field(default_factory=dict)
+    spacing: dict[tuple[int, int], tuple[int, int]] = field(default_factory=dict)
+    check_error_px: dict[tuple[int, int], float] = field(default_factory=dict)
     exact_points: int = 0
 
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from geoblock.dem.intersect import localize
 from geoblock.errors import GeoblockError
-from geoblock.typing import Status
+from geoblock.typing import BoolArray, Float64Array, Status
 
 __all__ = ["ConstantTexture", "ProceduralTexture", "RenderedImage", "Texture", "pixel_ground",
            "render", "render_image"]
@@ -169,7 +169,8 @@ class RenderedImage:
     lattice_error_px: float
 
 
-def _exact(model: Any, dem: Any, row: np.ndarray, col: np.ndarray):
+def _exact(model: Any, dem: Any, row: np.ndarray,
+           col: np.ndarray) -> tuple[Float64Array, Float64Array, BoolArray]:
     ground, status = localize(model, row, col, dem, warn=False)
     return ground.lon, ground.lat, status == Status.CONVERGED
 

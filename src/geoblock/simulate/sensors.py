@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -178,7 +178,7 @@ class OrbitSensorSpec:
         need(self.ephemeris_step_s > 0 and self.attitude_rate_hz > 0 and self.margin_s > 0,
              "ephemeris_step_s", "sampling steps and margin must be > 0")
 
-    def replace(self, **changes) -> OrbitSensorSpec:
+    def replace(self, **changes: Any) -> OrbitSensorSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
@@ -273,7 +273,8 @@ class SimulatedSensor:
 
 
 # ================================================================================ orbit
-def _orbit_ecef(spec: OrbitSensorSpec, t: np.ndarray, u0: float, raan: float):
+def _orbit_ecef(spec: OrbitSensorSpec, t: np.ndarray, u0: float,
+                raan: float) -> tuple[Float64Array, Float64Array]:
     """ECEF positions (N, 3) and Earth-fixed velocities (N, 3) of the circular orbit at t."""
     r, n = spec.orbit_radius_m, spec.mean_motion_rad_s
     inc = math.radians(spec.inclination_deg)
@@ -287,7 +288,7 @@ def _orbit_ecef(spec: OrbitSensorSpec, t: np.ndarray, u0: float, raan: float):
     theta = EARTH_ROTATION_RAD_S * t
     c, s = np.cos(theta), np.sin(theta)
 
-    def to_ecef(v):  # rotate by -theta about z
+    def to_ecef(v: Float64Array) -> Float64Array:  # rotate by -theta about z
         return np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
 
     p = to_ecef(p_i)
@@ -363,7 +364,8 @@ def incidence_angle(model: LinescanModel, row: float, col: float, h: float = 0.0
 
 
 # ================================================================================ simulation
-def _centred(spec: OrbitSensorSpec, phases: np.ndarray) -> tuple[LinescanModel, float, tuple]:
+def _centred(spec: OrbitSensorSpec, phases: np.ndarray
+             ) -> tuple[LinescanModel, float, tuple[float, float]]:
     """The true model with the image centre on the scene centre and the requested incidence."""
     rows, cols = spec.shape
     rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
@@ -388,7 +390,8 @@ def _centred(spec: OrbitSensorSpec, phases: np.ndarray) -> tuple[LinescanModel, 
     return model, roll, nadir
 
 
-def _with_errors(spec, nadir, roll, phases, errors) -> LinescanModel:
+def _with_errors(spec: OrbitSensorSpec, nadir: tuple[float, float], roll: float,
+                 phases: np.ndarray, errors: OnboardErrors) -> LinescanModel:
     return _build(spec, nadir[0], nadir[1], roll, phases, errors)
 
 
@@ -431,7 +434,7 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
     e_d = _errors_of(spec, true_model,
                      _with_errors(spec, nadir, roll, phases, shape_drift)) - e_0
 
-    def dot(a, b):
+    def dot(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.mean(np.sum(a * b, axis=-1)))
 
     base = dot(e_0, e_0)

@@ -22,7 +22,7 @@ import numpy as np
 
 from geoblock.adjust import ControlPoints, PointErrors, ground_errors, resect
 from geoblock.errors import GeoblockError
-from geoblock.models import ImageCorrection
+from geoblock.models import ImageCorrection, SensorModel
 from geoblock.simulate.points import PointSet
 from geoblock.typing import ArrayLike
 
@@ -52,7 +52,8 @@ class CheckPoints:
     col: np.ndarray
 
 
-def refined_errors(model, gcps: ControlPoints, icps: CheckPoints, order: int) -> np.ndarray:
+def refined_errors(model: SensorModel, gcps: ControlPoints, icps: CheckPoints,
+                   order: int) -> np.ndarray:
     """2D ground error (m) at the ICPs of ``model`` refined by an order-``order`` image-space
     correction fitted to ``gcps``.
 
@@ -102,7 +103,7 @@ class GcpCountStudy:
 
 
 def gcp_count_study(
-    model,
+    model: SensorModel,
     gcps: ControlPoints,
     icps: CheckPoints,
     *,

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -329,7 +330,7 @@ def _wavenumbers(shape: tuple[int, int]) -> np.ndarray:
 _STRIP_POSTS = 1 << 22
 
 
-def _strips(shape: tuple[int, ...]):
+def _strips(shape: tuple[int, ...]) -> Iterator[tuple[int, int]]:
     """``(r0, r1)`` row ranges of about ``_STRIP_POSTS`` posts covering ``shape[0]`` rows."""
     rows, cols = shape[0], shape[1]
     step = max(1, _STRIP_POSTS // max(cols, 1))

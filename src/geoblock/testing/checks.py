@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from geoblock import coords
-from geoblock.typing import Status
+from geoblock.typing import ArrayLike, Status
 
 __all__ = [
     "CHECKS",
@@ -1479,8 +1479,9 @@ def check_shapes(model: Any) -> None:
         return (("backproject", ("lon", "lat", "h"), model.backproject),
                 ("backproject_with_status", ("lon", "lat", "h"), model.backproject_with_status))
 
-    def verify(kind: str, args: tuple, shape: tuple[int, ...], label: str) -> dict:
-        results = {}
+    def verify(kind: str, args: tuple[ArrayLike, ArrayLike, ArrayLike], shape: tuple[int, ...],
+               label: str) -> dict[str, Any]:
+        results: dict[str, Any] = {}
         for name, fields, func in methods(kind):
             what = f"{name}({label})"
             out = _call(check, model, what, func, *args)

@@ -21,7 +21,7 @@ from geoblock.models.linescan.look import LookDirections
 from geoblock.models.linescan.rotations import matrix_to_quaternion, orbital_frame, rotation_xyz
 from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
 from geoblock.pixels import image_domain
-from geoblock.typing import ArrayLike, Float64Array, Status
+from geoblock.typing import ArrayLike, Float64Array, Status, StatusArray
 
 __all__ = [
     "DG_ADJUSTABLE",
@@ -414,7 +414,8 @@ class LinescanModel(SensorModelBase):
         return ~((h >= h0 - margin) & (h <= h1 + margin))
 
     # ------------------------------------------------------------------ image -> ground
-    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray) -> tuple:
+    def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray
+                        ) -> tuple[Float64Array, Float64Array, StatusArray]:
         t = self._line_times.time(row)
         pos, _, rot, _ = self._state(t)
         u = np.einsum("nij,nj->ni", rot, self._look.at(col))
@@ -425,7 +426,8 @@ class LinescanModel(SensorModelBase):
         return lon, lat, status
 
     # ------------------------------------------------------------------ ground -> image
-    def _residual(self, g: np.ndarray, pos: np.ndarray, rot: np.ndarray) -> tuple:
+    def _residual(self, g: np.ndarray, pos: np.ndarray, rot: np.ndarray
+                  ) -> tuple[Float64Array, Float64Array, Float64Array]:
         """Detector-plane residual at ground points g for states (pos, rot).
 
         Returns ``f = d_x/d_z - tan_x(col)``, ``col``, ``d`` (N, 3) in the sensor frame.
@@ -512,7 +514,8 @@ class LinescanModel(SensorModelBase):
             x0, f0, x1, f1, col1, dz1 = x1, f1, x, f, col, d[:, 2]
         return t_out, col_out, status
 
-    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> tuple:
+    def ground_to_image(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray
+                        ) -> tuple[Float64Array, Float64Array, StatusArray]:
         # no place on the Earth (lon=1e300 is some longitude once in sin/cos) or a height far
         # outside the model's range: OUT_OF_DOMAIN, not solved
         outside = (~((np.abs(lon) <= 540.0) & (np.abs(lat) <= 90.0))
