@@ -245,3 +245,13 @@ def test_block_file_options_are_the_engines_keywords():
 
     keywords = set(inspect.signature(adjust).parameters) - {"block", "progress", "mode"}
     assert set(ADJUST_OPTIONS) - {"sigma_px"} == keywords
+
+
+def test_dumps_toml_keeps_arrays_of_values_on_one_line():
+    """Scenario and block files stay as short to read as before tomli-w (which alone spreads
+    every array over several lines); a table inside an array of values is an inline table."""
+    text = dumps_toml({"relief": [150.0, 1100.0], "m": [[1, 2], [3]], "mix": [1, {"q": [1]}],
+                       "t": {"b c": [True]}})
+    assert text == ('relief = [150.0, 1100.0]\nm = [[1, 2], [3]]\nmix = [1, {q = [1]}]\n\n'
+                    '[t]\n"b c" = [true]\n')
+    assert tomllib.loads(text)["mix"] == [1, {"q": [1]}]

@@ -466,9 +466,10 @@ def dumps_toml(data: Mapping[str, Any]) -> str:
 
     Values may be str, int, float (``nan`` and ``inf`` included), bool, lists or tuples, and
     mappings (nested tables); a :class:`pathlib.Path` is written as its text. ``tomli-w``
-    writes the keys and values; the layout is fixed so that the file reads, and can be edited,
-    top-down: each table's own keys first, then its sub-tables (``[a.b]``) and arrays of
-    tables (``[[images]]``, one section per item), each section after a blank line.
+    writes the scalar values and quoted keys, arrays of values stay on one line, and the layout
+    is fixed so that the file reads, and can be edited, top-down: each table's own keys
+    first, then its sub-tables (``[a.b]``) and arrays of tables (``[[images]]``, one section
+    per item), each section after a blank line.
 
     Raises
     ------
@@ -480,7 +481,7 @@ def dumps_toml(data: Mapping[str, Any]) -> str:
 
 def _table_text(table: dict[str, Any], name: tuple[str, ...]) -> str:
     values = {k: v for k, v in table.items() if not _is_section(v)}
-    parts = [tomli_w.dumps(values)] if values else []
+    parts = ["".join(f"{_key(k)} = {_inline(v)}\n" for k, v in values.items())] if values else []
     for key, value in table.items():
         if not _is_section(value):
             continue
@@ -496,6 +497,16 @@ def _is_section(value: Any) -> bool:
     """A table, or a non-empty array of tables: written as ``[...]`` / ``[[...]]`` sections."""
     return isinstance(value, dict) or (
         isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value))
+
+
+def _inline(value: Any) -> str:
+    """A value on one line: arrays as ``[a, b]`` (tomli-w alone spreads every array over
+    several lines), scalars as tomli-w writes them."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_inline(v) for v in value) + "]"
+    if isinstance(value, dict):  # a table inside an array of values: an inline table
+        return "{" + ", ".join(f"{_key(k)} = {_inline(v)}" for k, v in value.items()) + "}"
+    return tomli_w.dumps({"k": value}).removeprefix("k = ").removesuffix("\n")
 
 
 def _key(key: str) -> str:
