@@ -28,6 +28,7 @@ __all__ = [
     "GeoblockDeprecationWarning",
     "GeoblockError",
     "GeoblockIOError",
+    "OutputDirectoryError",
     "GeoblockWarning",
     "GridError",
     "InputFileError",
@@ -253,6 +254,12 @@ class SingularSystemError(AdjustmentError):
 
 class GeoblockIOError(GeoblockError, OSError):
     """A file cannot be read or written."""
+
+
+class OutputDirectoryError(GeoblockIOError):
+    """An output directory holds files geoblock did not write there: it is not replaced (the
+    message names the directory and one foreign entry). Choose another directory, or empty
+    it yourself."""
 
 
 class GeoblockWarning(UserWarning):

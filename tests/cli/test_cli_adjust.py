@@ -107,6 +107,24 @@ def test_failure_keeps_a_previous_output(runner, cli, block_dir):
     assert (out / "keep.txt").read_text() == "previous"
 
 
+def test_an_output_directory_with_the_users_files_is_refused_not_replaced(runner, cli, block_dir):
+    """A successful run must not replace a directory holding files it did not write (a
+    mistyped --out would otherwise delete them); a previous output is replaced."""
+    out = block_dir / "mine"
+    out.mkdir()
+    (out / "thesis.txt").write_text("precious")
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out)])
+    assert result.exit_code == 1
+    assert "'thesis.txt'" in result.output and "choose another directory" in result.output
+    assert [p.name for p in out.iterdir()] == ["thesis.txt"]
+    again = block_dir / "again"
+    for _ in range(2):  # the second run replaces the first's output
+        result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out",
+                                     str(again), "--no-figures"])
+        assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in again.iterdir()) == ["models", "report.json", "report.md"]
+
+
 @pytest.mark.parametrize("edit, words", [
     (('method = "dg"', 'method = "bundle"'), ["block.toml", "method", "bundle", "rpcv1"]),
     (('method = "dg"', 'method = "dg"\n[options]\nrobustness = "huber"'),

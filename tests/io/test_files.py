@@ -106,3 +106,24 @@ def test_staged_files_write_all_or_nothing(tmp_path):
     with pytest.raises(GeoblockIOError, match="does not exist"):
         with files.staged_files([tmp_path / "nodir" / "x.txt"]):
             pass
+
+
+def test_atomic_directory_never_replaces_a_directory_holding_foreign_files(tmp_path):
+    """A mistyped output directory (``--out .``) must not delete the user's files."""
+    from geoblock.errors import OutputDirectoryError
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "thesis.txt").write_text("precious")
+    with pytest.raises(OutputDirectoryError, match=r"holds 'thesis.txt'"):
+        with files.atomic_directory(out, replaces=lambda e: e.suffix == ".png"):
+            raise AssertionError("must not be entered")
+    assert (out / "thesis.txt").read_text() == "precious"
+    (out / "thesis.txt").unlink()
+    (out / "old.png").write_bytes(b"")
+    with files.atomic_directory(out, replaces=lambda e: e.suffix == ".png") as tmp:
+        files.write_text(tmp / "new.png", "")
+    assert [p.name for p in out.iterdir()] == ["new.png"]
+    with pytest.raises(OutputDirectoryError, match="new.png"):  # no rule: only empty is replaced
+        with files.atomic_directory(out):
+            pass

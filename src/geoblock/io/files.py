@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
-from geoblock.errors import GeoblockIOError, MetadataFieldError
+from geoblock.errors import GeoblockIOError, MetadataFieldError, OutputDirectoryError
 from geoblock.io._atomic import atomic_directory as _atomic_directory
 from geoblock.io._atomic import atomic_path
 
@@ -206,12 +206,49 @@ def remove(path: str | os.PathLike[str], what: str = "") -> None:
 
 
 @contextmanager
-def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
-    """A temporary directory that replaces the directory ``path`` as a whole on success.
+def atomic_directory(
+    path: str | os.PathLike[str],
+    what: str = "",
+    *,
+    replaces: Callable[[Path], bool] | None = None,
+) -> Iterator[Path]:
+    """A temporary directory that takes the place of the directory ``path`` on success.
 
-    On failure ``path`` stays as it was and the temporary is removed. Write into the
-    yielded directory with this module's functions.
+    On failure ``path`` stays as it was and the temporary is removed. Write into the yielded
+    directory with this module's functions.
+
+    An existing ``path`` is replaced as a whole, so it must hold nothing geoblock did not
+    write: it is replaced only when it is empty or when ``replaces(entry)`` is true for every
+    entry (a :class:`~pathlib.Path`) in it: what a previous output of the same kind holds.
+    Anything else is refused before any work, so that a mistyped ``--out .`` never deletes a
+    user's files.
+
+    Raises
+    ------
+    OutputDirectoryError
+        ``path`` holds an entry ``replaces`` does not accept (names it), or is not a directory.
+    GeoblockIOError
+        A rename fails (names the path).
     """
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if path.is_symlink() or not path.is_dir():
+            raise OutputDirectoryError(
+                f"cannot write {what}{path}: it exists and is not a directory"
+            )
+        try:
+            entries = sorted(path.iterdir())
+        except OSError as exc:
+            raise GeoblockIOError(f"cannot write {what}{path}: {exc.strerror or exc}") from exc
+        foreign = [e.name for e in entries if replaces is None or not replaces(e)]
+        if foreign:
+            raise OutputDirectoryError(
+                f"cannot write {what}{path}: the directory holds {foreign[0]!r}"
+                f"{f' and {len(foreign) - 1} more entries' if len(foreign) > 1 else ''} that "
+                f"{'a previous ' + what.strip() if what.strip() else 'geoblock'} does not "
+                "write, and writing would replace the directory as a whole; choose another "
+                "directory (or empty it yourself)"
+            )
     with _atomic_directory(path, what) as tmp:
         yield tmp
 

@@ -216,14 +216,30 @@ def _figures(result: BlockResult, folder: Path) -> dict[str, str]:
     return out
 
 
+def _previous_output(entry: Path) -> bool:
+    """An entry :func:`write_result` writes (so a previous output may be replaced)."""
+    if entry.name == "models":
+        return entry.is_dir() and not entry.is_symlink() and all(
+            m.suffix == ".json" and m.is_file() for m in entry.iterdir())
+    return entry.is_file() and (entry.name in ("report.json", "report.md")
+                                or entry.suffix == ".png")
+
+
 def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
                  single: BlockResult | None = None, title: str = "Block adjustment",
                  figures: bool = True) -> dict[str, Path]:
     """Write ``models/<image>.json``, ``report.json``, ``report.md`` and the PNG figures.
 
     The files are written into a temporary directory beside ``out_dir`` and moved into place
-    at the end (an existing ``out_dir`` is replaced as a whole,
-    :func:`geoblock.io.files.atomic_directory`), so an error leaves ``out_dir`` as it was.
+    at the end (:func:`geoblock.io.files.atomic_directory`), so an error leaves ``out_dir``
+    as it was. An existing ``out_dir`` is replaced as a whole, and so only when it is empty
+    or a previous adjustment output (``models/``, ``report.json``, ``report.md``, PNG
+    figures and nothing else).
+
+    Raises
+    ------
+    OutputDirectoryError
+        ``out_dir`` holds anything else (named): nothing is deleted.
 
     Returns
     -------
@@ -232,7 +248,7 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
     """
     out = Path(out_dir)
     written: dict[str, Path] = {}
-    with files.atomic_directory(out, "adjustment output ") as tmp:
+    with files.atomic_directory(out, "adjustment output ", replaces=_previous_output) as tmp:
         files.make_directory(tmp / "models")
         for image, model in result.models.items():
             write_model(model, tmp / "models" / f"{image}.json")
