@@ -15,6 +15,7 @@ from dask.base import tokenize
 from rasterio.io import MemoryFile
 
 import geoblock
+import geoblock.pixels
 from geoblock.dem import ArrayDem, MosaicDem, RasterDem
 from geoblock.errors import DemError, GeoblockError, InputTypeError
 from geoblock.testing.synthetic import AffineCamera
@@ -182,3 +183,50 @@ def test_what_cannot_be_a_dem_is_named(tmp_path, utm_tif):
         geoblock.open_dem(ds)
     with pytest.raises(InputTypeError, match="DEM tile"):
         geoblock.open_dem([path, object()], vertical="ellipsoid")
+
+
+def _with_coords(da, transform):
+    """``da`` with x/y pixel-centre coordinates (what rioxarray gives)."""
+    rows, cols = da.shape[-2:]
+    x, y = geoblock.pixels.pixel_centres(transform, (rows, cols))
+    return da.assign_coords(x=("x", x), y=("y", y))
+
+
+def test_dataarray_slices_transposes_scales_and_legacy_nodata_give_the_files_heights(
+        srtm, srtm_pixels, egm96_path):
+    """Silent wrong answers a DataArray could give: a slice placed by its stale GeoTransform,
+    (x, y) dims read as (y, x), scale_factor/add_offset or ``nodatavals`` ignored."""
+    heights, transform, wkt, nodata = srtm_pixels
+    options = dict(vertical="geoid", geoid=egm96_path)
+    full = _with_coords(_dataarray(heights, transform, wkt, nodata), transform)
+    from_file = geoblock.open_dem(srtm, **options)
+    lon, lat = _points(from_file)
+    want = from_file.height(lon, lat)
+    sliced = full.isel(x=slice(100, None), y=slice(200, None))  # GeoTransform now stale
+    inside = (lon > sliced.x.values[2]) & (lat < sliced.y.values[2])  # bicubic support inside
+    got = geoblock.open_dem(sliced, **options).height(lon[inside], lat[inside])
+    np.testing.assert_allclose(got, want[inside], rtol=0, atol=1e-6)  # transform from coords
+    close = dict(rtol=0, atol=1e-6, equal_nan=True)  # the transform from rounded coordinates
+    np.testing.assert_allclose(
+        geoblock.open_dem(full.transpose("x", "y"), **options).height(lon, lat), want, **close)
+    scaled = full.copy(data=heights.astype(np.float64) * 10.0)
+    scaled.attrs.update(scale_factor=0.1, _FillValue=nodata * 10.0)
+    np.testing.assert_allclose(geoblock.open_dem(scaled, **options).height(lon, lat), want,
+                               **close)
+    legacy = full.copy()
+    legacy.attrs = {"nodatavals": (nodata,)}
+    np.testing.assert_allclose(geoblock.open_dem(legacy, **options).height(lon, lat), want,
+                               **close)
+
+
+def test_a_gdal_order_geotransform_is_refused_and_arrays_are_copied(srtm_pixels):
+    heights, transform, wkt, nodata = srtm_pixels
+    with pytest.raises(DemError, match=r"from_gdal"):
+        geoblock.open_dem(heights, transform=transform.to_gdal(), crs=wkt)
+    mine = heights.astype(np.float64)
+    dem = geoblock.open_dem(mine, transform=transform, crs=wkt, vertical="ellipsoid",
+                            nodata_value=nodata)
+    lon, lat = geoblock.pixels.pixel_to_map(transform, 600.0, 600.0)
+    before = dem.height(lon, lat)
+    mine[:] = 0.0  # the caller's array changes; the DEM must not
+    assert dem.height(lon, lat) == before != 0.0

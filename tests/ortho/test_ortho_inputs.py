@@ -180,3 +180,24 @@ def test_what_cannot_be_an_image_is_named(scene):
     with pytest.raises(InputTypeError, match="closed"):
         open_image(ds)
     assert isinstance(open_image(path), ImageSource)
+
+
+def test_dataarray_images_band_last_pixel_index_coords_and_crs_codes():
+    """(y, x, band) dims are reordered, pixel-index coordinates of a raw image are not a crop
+    offset, and a CRS given as a code is read (not a rasterio traceback)."""
+    import xarray as xr
+
+    from geoblock.io import open_image
+
+    pixels = np.arange(100 * 80 * 3, dtype=np.uint16).reshape(100, 80, 3)
+    raw = xr.DataArray(pixels, dims=("y", "x", "band"),
+                       coords={"y": np.arange(100), "x": np.arange(80)})
+    image = open_image(raw)
+    assert image.array.shape == (3, 100, 80)
+    np.testing.assert_array_equal(image.array[1], pixels[:, :, 1])
+    assert image.crop_offset is None
+    crop = raw.assign_coords(y=np.arange(100) + 5000.5, x=np.arange(80) + 7000.5)
+    assert open_image(crop).crop_offset == (5000.0, 7000.0)  # a pixel-unit window
+    mapped = raw.assign_coords(y=4.8e6 - 10 * np.arange(100), x=5e5 + 10 * np.arange(80))
+    mapped.attrs["crs"] = "EPSG:32631"
+    assert open_image(mapped).crs.to_epsg() == 32631

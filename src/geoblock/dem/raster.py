@@ -783,15 +783,23 @@ class ArrayDem(RasterDem):
         if arr.ndim != 2 or min(arr.shape) < 1 or arr.dtype.kind not in "iuf":
             raise DemError(f"{name or 'in-memory DEM'}: heights must be a non-empty 2-D array "
                            f"of numbers, got shape {np.shape(heights)} and dtype {arr.dtype}")
-        view = arr.view()
-        view.flags.writeable = False
-        self._array = view
+        # an own read-only copy: a caller changing its array afterwards must not change
+        # heights behind the block cache and the digest
+        own = np.array(arr, copy=arr.flags.writeable)
+        own.flags.writeable = False
+        self._array = own
         rows, cols = arr.shape
         self._path = name or f"<in-memory {rows} x {cols} DEM>"
         self._set_options(vertical, nodata, interpolation, strict, 1, fill_distance)
         if transform is None:
             raise DemError(f"DEM {self._path}: a geotransform is needed (transform=)")
         t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
+        if t.b != 0.0 or t.d != 0.0 or t.a == 0.0 or t.e == 0.0:
+            raise DemError(
+                f"DEM {self._path}: the geotransform {tuple(t)[:6]} is rotated or degenerate; "
+                "an in-memory DEM needs a north-up transform in rasterio order (a, b, c, d, "
+                "e, f) = (x step, 0, x of the corner, 0, y step, y of the corner); GDAL's "
+                "GetGeoTransform() order is (c, a, b, f, d, e): use Affine.from_gdal(*gt)")
         self._set_raster(driver=driver, shape=(rows, cols), transform=t,
                          crs=_crs_of(crs, self._path), file_nodata=nodata_value,
                          dtype=arr.dtype, scale=scale, offset=offset, tags={})

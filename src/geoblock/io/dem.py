@@ -18,7 +18,14 @@ import numpy as np
 
 from geoblock.errors import DemError, InputTypeError
 from geoblock.io._atomic import atomic_path
-from geoblock.io.rasters import dataarray_georeferencing, is_dataarray, is_dataset, type_name
+from geoblock.io.rasters import (
+    dataarray_georeferencing,
+    dataarray_grid,
+    dataarray_scale_offset,
+    is_dataarray,
+    is_dataset,
+    type_name,
+)
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -237,12 +244,14 @@ class _Options:
                             offset=source.offsets[0] or 0.0, driver=source.driver,
                             name=name or "<in-memory rasterio dataset>", **options)
         if is_dataarray(source):
-            if source.ndim == 3 and source.shape[0] == 1:
-                source = source[0]
-            if source.ndim != 2:
+            grid = dataarray_grid(source, "open_dem", bands=False)
+            if grid.ndim == 3 and grid.shape[0] == 1:
+                grid = grid[0]
+            if grid.ndim != 2:
                 raise DemError(f"open_dem: a DataArray DEM must be (y, x) or (1, y, x), got "
                                f"dims {tuple(source.dims)}")
             wkt, stated_transform, stated_nodata = dataarray_georeferencing(source)
+            scale, offset = dataarray_scale_offset(source)
             transform = stated_transform if transform is None else transform
             crs = wkt if crs is None else crs
             name = f"<DataArray {source.name}>" if source.name is not None else "<DataArray>"
@@ -251,9 +260,9 @@ class _Options:
                     f"open_dem: the DataArray {name} is not georeferenced: it needs a "
                     "spatial_ref coordinate with crs_wkt and GeoTransform attributes (as "
                     "rioxarray writes them), or pass transform= and crs=")
-            return ArrayDem(np.asarray(source.values), transform, crs,
+            return ArrayDem(grid, transform, crs,
                             nodata_value=stated_nodata if nodata_value is None else nodata_value,
-                            name=name, **options)
+                            scale=scale, offset=offset, name=name, **options)
         if isinstance(source, np.ndarray):
             if transform is None or crs is None:
                 raise DemError("open_dem: a numpy array needs its georeferencing: "

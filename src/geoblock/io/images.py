@@ -37,6 +37,7 @@ from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
 from geoblock.io.rasters import (
     dataarray_georeferencing,
+    dataarray_grid,
     is_dataarray,
     is_dataset,
     open_quietly,
@@ -174,9 +175,11 @@ class ArrayImage:
             raise InputTypeError(
                 f"{self.name}: an image array must be (R, C) or (bands, R, C) of a real "
                 f"numeric dtype, got shape {np.shape(self.array)} and dtype {data.dtype}")
-        view = data.view()
-        view.flags.writeable = False
-        object.__setattr__(self, "array", view)
+        # an own read-only copy: a caller changing its array afterwards must not change
+        # (part of) an image whose token and cached windows say otherwise
+        own = np.array(data, copy=data.flags.writeable)
+        own.flags.writeable = False
+        object.__setattr__(self, "array", own)
 
     @property
     def path(self) -> str:
@@ -336,9 +339,15 @@ def _from_dataarray(data: Any, nodata: float | None, transform: Any, crs: Any) -
     wkt, stated_transform, stated_nodata = dataarray_georeferencing(data)
     if crs is None and wkt is not None:
         import rasterio.crs
+        import rasterio.errors
 
-        crs = rasterio.crs.CRS.from_wkt(wkt)
-    return _from_array(np.asarray(data.values), stated_nodata if nodata is None else nodata,
+        try:
+            crs = rasterio.crs.CRS.from_user_input(wkt)
+        except rasterio.errors.CRSError as exc:
+            raise InputTypeError(f"open_image: the DataArray's CRS {wkt!r} cannot be read: "
+                                 f"{exc}") from None
+    return _from_array(dataarray_grid(data, "open_image", bands=True),
+                       stated_nodata if nodata is None else nodata,
                        stated_transform if transform is None else transform, crs,
                        f"<DataArray {data.name}>" if data.name is not None else "<DataArray>")
 
@@ -379,28 +388,12 @@ def pixel_crop_offset(transform: Any, crs: Any = None) -> tuple[float, float] | 
         return None
     if (a, b, d, e) != (1.0, 0.0, 0.0, 1.0) or not (math.isfinite(c) and math.isfinite(f)):
         return None
-    if c == 0.0 and f == 0.0:
-        return None
+    if (c == 0.0 and f == 0.0) or not (c.is_integer() and f.is_integer()):
+        return None  # the identity, or not a window of whole pixels
     return f, c
 
 
 # ---------------------------------------------------------------------- writing
-def _georeferencing(data: Any) -> tuple[str | None, Any]:
-    """``(crs_wkt, Affine)`` from the ``spatial_ref`` coordinate (rioxarray's convention)."""
-    from affine import Affine
-
-    ref = data.coords.get("spatial_ref")
-    wkt = None
-    transform = None
-    if ref is not None:
-        wkt = ref.attrs.get("crs_wkt") or ref.attrs.get("spatial_ref")
-        gt = ref.attrs.get("GeoTransform")
-        if gt is not None:
-            c, a, b, f, d, e = (float(v) for v in str(gt).split())
-            transform = Affine(a, b, c, d, e, f)
-    return wkt, transform
-
-
 def _distributed_client(scheduler: Any) -> Any:
     """The dask.distributed Client to use, or None for a local scheduler."""
     try:
@@ -677,7 +670,7 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
 
     if tuple(data.dims) != ("band", "y", "x"):
         raise ValueError(f"write_ortho: dims must be ('band', 'y', 'x'), got {data.dims}")
-    wkt, transform = _georeferencing(data)
+    wkt, transform, _ = dataarray_georeferencing(data)
     if nodata is None:
         nodata = data.attrs.get("_FillValue", data.encoding.get("_FillValue"))
     array = data.data

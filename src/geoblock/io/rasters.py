@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from geoblock.errors import DemError, GeoblockIOError
+from geoblock.errors import DemError, GeoblockIOError, InputTypeError
 
 if TYPE_CHECKING:
     from affine import Affine
@@ -48,6 +48,8 @@ __all__ = [
     "MAX_HANDLES_PER_THREAD",
     "cached_dataset",
     "dataarray_georeferencing",
+    "dataarray_grid",
+    "dataarray_scale_offset",
     "is_dataarray",
     "is_dataset",
     "open_quietly",
@@ -247,11 +249,24 @@ def _transform_from_coords(data: Any) -> Affine | None:
     if x.ndim != 1 or y.ndim != 1 or x.size < 2 or y.size < 2:
         return None
     dx, dy = np.diff(x), np.diff(y)
-    if not (np.allclose(dx, dx[0], rtol=1e-9, atol=0) and np.allclose(dy, dy[0], rtol=1e-9,
-                                                                        atol=0)):
+    # regular within the precision the coordinates were stored with (float32 coordinates of
+    # UTM eastings carry ~0.03 m of rounding)
+    eps = float(np.finfo(data.coords["x"].dtype).eps
+                if np.issubdtype(data.coords["x"].dtype, np.floating) else np.finfo(float).eps)
+    tol_x = 8 * eps * max(float(np.abs(x).max()), abs(float(dx[0])))
+    tol_y = 8 * eps * max(float(np.abs(y).max()), abs(float(dy[0])))
+    if not (np.allclose(dx, dx[0], rtol=0, atol=tol_x) and np.allclose(dy, dy[0], rtol=0,
+                                                                        atol=tol_y)):
         return None
     a, e = float(dx[0]), float(dy[0])
     return Affine(a, 0.0, float(x[0]) - PIXEL_CENTRE * a, 0.0, e, float(y[0]) - PIXEL_CENTRE * e)
+
+
+def _same_grid(a: Affine, b: Affine) -> bool:
+    """Whether two geotransforms place pixels within 1e-6 px of each other."""
+    step = max(abs(a.a), abs(a.e), abs(a.b), abs(a.d))
+    return all(abs(u - v) <= 1e-6 * step for u, v in zip(tuple(a)[:6], tuple(b)[:6],
+                                                         strict=True))
 
 
 def _parse_geotransform(value: Any) -> Affine | None:
@@ -273,11 +288,13 @@ def dataarray_georeferencing(data: Any) -> tuple[str | None, Affine | None, floa
 
     * CRS: the ``spatial_ref`` coordinate's ``crs_wkt`` or ``spatial_ref`` attribute, then
       ``attrs["crs"]``;
-    * geotransform: the ``spatial_ref`` coordinate's ``GeoTransform`` (GDAL order, as
-      rioxarray and :func:`geoblock.orthorectify` write it), then ``attrs["transform"]``
-      (rasterio order ``a, b, c, d, e, f``), then regular 1-D ``x``/``y`` coordinates (pixel
-      centres);
-    * nodata: ``attrs["_FillValue"]``, ``encoding["_FillValue"]``, ``attrs["nodata"]``.
+    * geotransform: regular 1-D ``x``/``y`` coordinates (pixel centres) when there are some:
+      they follow ``isel``/``sel`` slicing, which leaves a stored GeoTransform stale (as
+      rioxarray does); otherwise the ``spatial_ref`` coordinate's ``GeoTransform`` (GDAL
+      order, as rioxarray and :func:`geoblock.orthorectify` write it), then
+      ``attrs["transform"]`` (rasterio order ``a, b, c, d, e, f``);
+    * nodata: ``attrs["_FillValue"]``, ``encoding["_FillValue"]``, ``attrs["nodata"]``,
+      ``attrs["nodatavals"][0]`` (the old ``xarray.open_rasterio``).
 
     Missing items are ``None``.
     """
@@ -286,20 +303,58 @@ def dataarray_georeferencing(data: Any) -> tuple[str | None, Affine | None, floa
     ref = data.coords.get("spatial_ref")
     ref_attrs = ref.attrs if ref is not None else {}
     wkt = ref_attrs.get("crs_wkt") or ref_attrs.get("spatial_ref") or data.attrs.get("crs")
-    transform = None
+    stored = None
     if ref_attrs.get("GeoTransform") is not None:
-        transform = _parse_geotransform(ref_attrs["GeoTransform"])
-    if transform is None and data.attrs.get("transform") is not None:
+        stored = _parse_geotransform(ref_attrs["GeoTransform"])
+    if stored is None and data.attrs.get("transform") is not None:
         try:
-            transform = Affine(*(float(v) for v in tuple(data.attrs["transform"])[:6]))
+            stored = Affine(*(float(v) for v in tuple(data.attrs["transform"])[:6]))
         except (TypeError, ValueError):
-            transform = None
-    if transform is None:
-        transform = _transform_from_coords(data)
+            stored = None
+    from_coords = _transform_from_coords(data)
+    transform = stored
+    if from_coords is not None and (stored is None or not _same_grid(stored, from_coords)):
+        transform = from_coords  # a slice: the stored transform is stale
     nodata = None
+    legacy = data.attrs.get("nodatavals")
     for value in (data.attrs.get("_FillValue"), data.encoding.get("_FillValue"),
-                  data.attrs.get("nodata")):
+                  data.attrs.get("nodata"), legacy[0] if legacy else None):
         if value is not None:
             nodata = float(value)
             break
     return (None if wkt is None else str(wkt)), transform, nodata
+
+
+def dataarray_scale_offset(data: Any) -> tuple[float, float]:
+    """``(scale, offset)`` of a DataArray's stored values (``value * scale + offset``), from
+    ``scale_factor``/``add_offset`` in its attributes or encoding, as rioxarray leaves them
+    with ``mask_and_scale=False``; ``(1, 0)`` when absent."""
+    def first(key: str, default: float) -> float:
+        for where in (data.attrs, data.encoding):
+            if where.get(key) is not None:
+                return float(where[key])
+        return default
+
+    return first("scale_factor", 1.0), first("add_offset", 0.0)
+
+
+def dataarray_grid(data: Any, what: str, *, bands: bool) -> np.ndarray:
+    """The values of a DataArray ordered ``(y, x)`` (or ``(band, y, x)`` with ``bands``).
+
+    Dimensions named ``y``/``x`` (and ``band``) are put in that order whatever their order in
+    the DataArray; unnamed layouts are taken as they are. Other named layouts are refused.
+    """
+    dims = tuple(str(d) for d in data.dims)
+    if "x" in dims and "y" in dims:
+        wanted: tuple[str, ...] = ("y", "x")
+        if bands and data.ndim == 3:
+            extra = [d for d in dims if d not in wanted]
+            wanted = (extra[0], "y", "x")
+        elif data.ndim == 3 and data.shape[dims.index(
+                next(d for d in dims if d not in ("x", "y")))] == 1:
+            data = data.squeeze([d for d in dims if d not in ("x", "y")])
+        if data.ndim != len(wanted):
+            raise InputTypeError(f"{what}: a DataArray with dims {dims} cannot be read as "
+                                 f"{' x '.join(wanted)}")
+        data = data.transpose(*wanted)
+    return np.asarray(data.values)
