@@ -29,8 +29,8 @@ from geoblock.errors import (
 )
 from geoblock.models import get_registry
 from geoblock.models.linescan import LinescanModel
-from geoblock.models.registry import from_dict
 from geoblock.ortho import OutputGrid, source_coordinates
+from geoblock.plugins import from_dict
 from geoblock.testing.contract import SensorModelContract
 from geoblock.testing.synthetic import ConstantVelocityPushbroom
 

@@ -22,7 +22,7 @@ import geoblock
 from geoblock import Status, coords
 from geoblock.adjust import ControlPoints, resect
 from geoblock.errors import ModelFormatError, SerializationError
-from geoblock.models.registry import from_dict
+from geoblock.plugins import from_dict
 from geoblock.testing import SensorModelContract
 from geoblock.testing.synthetic import ConstantVelocityPushbroom
 
@@ -219,7 +219,7 @@ def test_json_round_trip_through_the_registry(table1, tmp_path):
     assert type(again) is ChenLeeModel and again == mba and again.parameter_set == "mba"
     path = geoblock.write_model(mba, tmp_path / "spot.json")
     assert geoblock.open_model(path) == mba
-    assert "spot-chenlee" in geoblock.models.registry.get_registry()
+    assert "spot-chenlee" in geoblock.plugins.get_registry()
 
 
 def test_bad_input_raises_errors_naming_the_field(table1):

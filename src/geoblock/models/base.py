@@ -162,7 +162,7 @@ class SensorModelBase(abc.ABC):
                     f"{cls.__qualname__}.{old} is deprecated: name the kernel {new} "
                     "(the public name since geoblock 0.2)",
                     DeprecationWarning,
-                    stacklevel=2,
+                    stacklevel=3,  # the class statement (past ABCMeta.__new__)
                 )
                 setattr(cls, new, cls.__dict__[old])
         if getattr(cls, "__abstractmethods__", None):

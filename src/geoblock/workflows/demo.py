@@ -35,15 +35,12 @@ from geoblock.errors import DemoOutdirError, GeoblockIOError
 from geoblock.io import open_dem, open_image, write_ortho
 from geoblock.io.files import make_directory, read_text, remove, save_figure, write_text
 from geoblock.pixels import image_domain
-from geoblock.simulate.presets import DEMO_SIZES
 from geoblock.simulate.scenario import demo_scenario
 from geoblock.workflows.scenario import ScenarioResult, footprint_rows, run_scenario
 
 __all__ = [
     "DEMO_MARKER",
     "DEMO_OUTPUTS",
-    "DEMO_SIZES",
-    "DemoOutdirError",
     "DemoResult",
     "is_demo_outdir",
     "prepare_demo_outdir",

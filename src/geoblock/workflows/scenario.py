@@ -24,10 +24,9 @@ from geoblock import coords
 from geoblock.adjust import PointErrors
 from geoblock.adjust.statistics import IctpDiscrepancies, ictp_accuracy
 from geoblock.errors import GeoblockError
-from geoblock.io import BlockDem, BlockImage, write_block, write_dem, write_image, write_model
+from geoblock.io import BlockDem, BlockImage, write_block, write_image, write_model
 from geoblock.io.blocks import Block
 from geoblock.io.files import make_directory, save_figure, write_csv, write_json, write_text
-from geoblock.io.points import write_points
 from geoblock.pixels import image_domain
 from geoblock.simulate.points import PointSet
 from geoblock.simulate.scenario import Scenario, write_scenario
@@ -97,22 +96,6 @@ class ScenarioResult:
 
 def _no_progress(message: str) -> None:
     return None
-
-
-def _write_terrain(path: Path, terrain: Terrain) -> Path:
-    """A terrain as a GeoTIFF stating its vertical datum (:func:`geoblock.io.write_dem`)."""
-    return write_dem(path, terrain.heights, terrain.grid.transform, terrain.grid.crs,
-                     terrain.vertical)
-
-
-def _write_points(folder: Path, points: PointSet) -> dict[str, Path]:
-    """``ground.csv``, ``image.csv`` and ``truth.csv`` (:func:`geoblock.io.write_points`)."""
-    paths = {}
-    for name, columns in (("ground", points.ground_columns()), ("image", points.image_columns()),
-                          ("truth", points.truth_columns())):
-        paths[name] = folder / f"{name}.csv"
-        write_points(paths[name], columns)
-    return paths
 
 
 def run_scenario(
@@ -199,14 +182,14 @@ def run_scenario(
     say(f"terrain: {t.kind} {t.relief[0]:g}-{t.relief[1]:g} m on {grid.shape[0]} x "
         f"{grid.shape[1]} posts of {t.resolution_m:g} m ({grid.crs.name})")
     truth = true_terrain(scenario, grid)
-    files["truth"] = _write_terrain(out / "terrain" / "truth.tif", truth)
+    files["truth"] = truth.write(out / "terrain" / "truth.tif")
     true_dem = truth.to_dem()
     lap("terrain")
     dems = {}
     for k, d in enumerate(scenario.dems):
         say(f"DEM {d.name}: {d.spacing_m:g} m posts, RMSEz {d.rmse_z:g} m")
         dems[d.name] = scene_dem(scenario, truth, k)
-        files[f"dem:{d.name}"] = _write_terrain(out / "terrain" / f"{d.name}.tif", dems[d.name])
+        files[f"dem:{d.name}"] = dems[d.name].write(out / "terrain" / f"{d.name}.tif")
     lap("dems")
 
     # --- models
@@ -219,7 +202,7 @@ def run_scenario(
     # --- points
     say("points: GCPs and ICPs per image, TPs and ICTPs per overlap")
     pts = scene_points(scenario, sims, true_dem)
-    for key, path in _write_points(out / "points", pts).items():
+    for key, path in pts.write(out / "points").items():
         files[f"points:{key}"] = path
     say("  " + ", ".join(f"{pts.count(k)} {k.upper()}s" for k in ("gcp", "icp", "tp", "ictp")))
     lap("points")
@@ -285,8 +268,7 @@ def run_scenario(
 
 
 # ================================================================================ report
-def footprint_rows(sensors: Mapping[str, SimulatedSensor],
-                   truth: Terrain | None = None) -> list[dict[str, Any]]:
+def footprint_rows(sensors: Mapping[str, SimulatedSensor]) -> list[dict[str, Any]]:
     """Per image: size, GSD, incidence, centre and corners of the true footprint (at the
     scene centre's height), and the on-board model's shift at the centre.
 
@@ -294,8 +276,6 @@ def footprint_rows(sensors: Mapping[str, SimulatedSensor],
     ----------
     sensors : mapping of str to SimulatedSensor
         By image id.
-    truth : Terrain, optional
-        Unused (kept for the callers of version 0.1).
 
     Returns
     -------
