@@ -23,7 +23,7 @@ from __future__ import annotations
 import importlib.resources
 from pathlib import Path
 
-from geoblock.errors import GeoblockIOError, ModelFormatError
+from geoblock.errors import GeoblockError, GeoblockIOError, ModelFormatError
 from geoblock.io.metadata import Fields, decode_text, read_bytes
 from geoblock.pixels import corner_to_centre
 from geoblock_example.camera import FrameCamera
@@ -88,16 +88,20 @@ def read_frame_file(path: str | Path) -> FrameCamera:
         row0, col0 = corner_to_centre(row0, col0)  # convert once, at the boundary
     sigma_pos = fields.number("sigma_position", 10.0, low=0.0, strict_low=True, from_text=True)
     sigma_att = fields.number("sigma_attitude", 1e-4, low=0.0, strict_low=True, from_text=True)
-    try:
+    principal_distance = fields.number("principal_distance", from_text=True)
+    centre = tuple(fields.numbers("centre", count=3))
+    attitude = fields.numbers("attitude", count=3)
+    height_range = tuple(fields.numbers("height_range", count=2))
+    try:  # the fields are read (their errors name file and field); now the model's checks
         return FrameCamera(
             shape=(rows, cols),
-            principal_distance=fields.number("principal_distance", from_text=True),
+            principal_distance=principal_distance,
             principal_point=(float(row0), float(col0)),
-            centre=tuple(fields.numbers("centre", count=3)),
-            attitude=fields.numbers("attitude", count=3),
+            centre=centre,
+            attitude=attitude,
             sigmas=[sigma_pos] * 3 + [sigma_att] * 3,
-            height_range=tuple(fields.numbers("height_range", count=2)),
+            height_range=height_range,
         )
-    except ModelFormatError as exc:  # the model refuses the values: name the file
+    except GeoblockError as exc:  # the model refuses the values: name the file
         raise ModelFormatError(f"{str(path)!r}: {exc}") from exc
 # --8<-- [end:read]
