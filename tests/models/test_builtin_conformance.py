@@ -84,7 +84,8 @@ def test_examples_are_of_the_registered_class() -> None:
 class TestBuiltinModels(SensorModelContract):
     """The contract over every registered model's examples."""
 
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "mba": {"accuracy_m": 50.0}}
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
+                             "mba": {"accuracy_m": 50.0}}
 
     @pytest.fixture(params=_cases())
     def model(self, request):

@@ -35,7 +35,7 @@ def _centre(model):
 
 
 class TestSimulatedContract(SensorModelContract):
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}}
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
 
     @pytest.fixture(params=["spot5-strip3-small-true", "quickbird-small-onboard"])
     def model(self, request):

@@ -15,7 +15,9 @@ the attitude (small rotations about the sensor axes), the physical corrections o
 direct georeferencing and of Chen & Lee's bundle adjustment.
 
 Parameter sets (:meth:`LinescanModel.with_parameter_set`): ``"default"`` (the parameters as
-they are), ``"linescan"`` (the twelve, free) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
+they are), ``"linescan"`` (the twelve, free), ``"physical"`` (:func:`physical_parameters`:
+attitude biases and drifts, along/across-track position biases and the focal scale, in the
+spirit of Toutin's CCRS model) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
 direct-georeferencing correction, position biases and drifts and attitude biases with a-priori
 sigmas from the product's location accuracy, attitude rates fixed).
 
@@ -42,8 +44,10 @@ from their metadata:
 * :mod:`~geoblock.models.linescan.attitude`: :class:`Attitude`;
 * :mod:`~geoblock.models.linescan.look`: :class:`LookDirections`;
 * :mod:`~geoblock.models.linescan.line_times`: :class:`LineTimes`;
+* :mod:`~geoblock.models.linescan.light`: the light-path corrections (velocity aberration,
+  light time, atmospheric refraction), :data:`CORRECTIONS`;
 * :mod:`~geoblock.models.linescan.model`: :class:`LinescanModel`, :data:`PARAMETER_NAMES`,
-  :func:`dg_parameters`.
+  :func:`dg_parameters`, :func:`physical_parameters`.
 
 Every name is importable from ``geoblock.models.linescan`` itself.
 """
@@ -51,14 +55,18 @@ Every name is importable from ``geoblock.models.linescan`` itself.
 
 from geoblock.models.linescan.attitude import Attitude
 from geoblock.models.linescan.ephemeris import MAX_SPEED_M_S, ORBIT_RADIUS_M, Ephemeris
+from geoblock.models.linescan.light import CORRECTIONS
 from geoblock.models.linescan.line_times import LineTimes
 from geoblock.models.linescan.look import LookDirections
 from geoblock.models.linescan.model import (
     DG_ADJUSTABLE,
+    OPTIONAL_PARAMETER_NAMES,
     PARAMETER_NAMES,
     PARAMETER_UNITS,
+    PHYSICAL_ADJUSTABLE,
     LinescanModel,
     dg_parameters,
+    physical_parameters,
 )
 from geoblock.models.linescan.rotations import (
     matrix_to_quaternion,
@@ -68,11 +76,14 @@ from geoblock.models.linescan.rotations import (
 )
 
 __all__ = [
+    "CORRECTIONS",
     "DG_ADJUSTABLE",
     "MAX_SPEED_M_S",
+    "OPTIONAL_PARAMETER_NAMES",
     "ORBIT_RADIUS_M",
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
+    "PHYSICAL_ADJUSTABLE",
     "Attitude",
     "Ephemeris",
     "LineTimes",
@@ -80,6 +91,7 @@ __all__ = [
     "LookDirections",
     "dg_parameters",
     "matrix_to_quaternion",
+    "physical_parameters",
     "orbital_frame",
     "quaternion_to_matrix",
     "rotation_xyz",

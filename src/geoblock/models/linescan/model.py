@@ -16,6 +16,11 @@ from geoblock.models.base import SensorModelBase
 from geoblock.models.linescan._checks import fail
 from geoblock.models.linescan.attitude import Attitude
 from geoblock.models.linescan.ephemeris import Ephemeris
+from geoblock.models.linescan.light import (
+    apparent_direction,
+    check_corrections,
+    geometric_direction,
+)
 from geoblock.models.linescan.line_times import LineTimes
 from geoblock.models.linescan.look import LookDirections
 from geoblock.models.linescan.rotations import matrix_to_quaternion, orbital_frame, rotation_xyz
@@ -25,10 +30,13 @@ from geoblock.typing import ArrayLike, Float64Array, Status, StatusArray
 
 __all__ = [
     "DG_ADJUSTABLE",
+    "OPTIONAL_PARAMETER_NAMES",
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
+    "PHYSICAL_ADJUSTABLE",
     "LinescanModel",
     "dg_parameters",
+    "physical_parameters",
 ]
 
 #: Names of the model's parameters, in order (see :class:`LinescanModel`).
@@ -40,12 +48,26 @@ PARAMETER_NAMES: tuple[str, ...] = (
 )
 #: Units of :data:`PARAMETER_NAMES`.
 PARAMETER_UNITS: tuple[str, ...] = ("m",) * 3 + ("m/s",) * 3 + ("rad",) * 3 + ("rad/s",) * 3
+#: Parameters a model holds only when its set names them: ``focal_scale``, the relative
+#: change of the principal distance (look tangents divided by ``1 + focal_scale``; unit 1).
+OPTIONAL_PARAMETER_NAMES: tuple[str, ...] = ("focal_scale",)
+_ALL_NAMES = PARAMETER_NAMES + OPTIONAL_PARAMETER_NAMES
+_ALL_UNITS = PARAMETER_UNITS + ("1",)
 #: The parameters the ``"dg"`` set lets an adjustment change (:func:`dg_parameters`): position
 #: biases and drifts, attitude biases; the attitude rates stay fixed.
 DG_ADJUSTABLE: tuple[str, ...] = (
     "dp_along", "dp_across", "dp_radial",
     "dp_along_rate", "dp_across_rate", "dp_radial_rate",
     "roll_bias", "pitch_bias", "yaw_bias",
+)
+#: The parameters the ``"physical"`` set lets an adjustment change
+#: (:func:`physical_parameters`, in the spirit of Toutin's CCRS model): attitude biases and
+#: drifts, along- and across-track position biases and the focal scale.
+PHYSICAL_ADJUSTABLE: tuple[str, ...] = (
+    "dp_along", "dp_across",
+    "roll_bias", "pitch_bias", "yaw_bias",
+    "roll_rate", "pitch_rate", "yaw_rate",
+    "focal_scale",
 )
 
 _CONVERGED = np.uint8(Status.CONVERGED)
@@ -68,12 +90,19 @@ class LinescanModel(SensorModelBase):
     height_range : (float, float)
         Valid heights, metres above the ellipsoid.
     parameters : ParameterSet, optional
-        Values (and sigmas, adjustable mask) of some or all of :data:`PARAMETER_NAMES`
-        (missing ones are 0 and fixed out of the set); default all twelve, zero, free.
+        Values (and sigmas, adjustable mask) of some or all of :data:`PARAMETER_NAMES` and
+        :data:`OPTIONAL_PARAMETER_NAMES` (missing ones are 0 and fixed out of the set);
+        default the twelve :data:`PARAMETER_NAMES`, zero, free.
     location_accuracy_m : float, optional
         The product's stated location accuracy (1 sigma, metres, > 0), from which the ``"dg"``
         parameter set derives its a-priori sigmas when :meth:`with_parameter_set` gets no
         ``accuracy_m``; None (default) when unknown. Informational otherwise.
+    corrections : sequence of str, optional
+        Light-path corrections to apply, names from
+        :data:`~geoblock.models.linescan.light.CORRECTIONS`: ``"aberration"``,
+        ``"light-time"``, ``"refraction"`` (:mod:`geoblock.models.linescan.light`). Default
+        none: the line of sight is the straight line to the ground, as for sensors whose
+        calibrated look directions absorb these effects (SPOT DIMAP).
 
     Notes
     -----
@@ -84,16 +113,22 @@ class LinescanModel(SensorModelBase):
     * ``R'(t) = R(t) @ Rx(roll) @ Ry(pitch) @ Rz(yaw)``, each angle ``bias + rate * dt``,
       ``R(t)`` sensor -> ECEF (``M_orb(t) @ R_att(t)`` for an orbital-frame attitude).
 
-    Image -> ground intersects ``P' + s R' look(col)`` with the surface of height ``h``;
-    ground -> image searches the time at which the ground point is in the detector plane.
+    * ``look'(col) = normalise(look_x, look_y, look_z (1 + focal_scale))``.
+
+    Image -> ground intersects ``P' + s u`` with the surface of height ``h``, ``u`` the line
+    of sight ``R' look'(col)`` corrected to the straight line to the ground
+    (:func:`~geoblock.models.linescan.light.geometric_direction`) when :attr:`corrections`
+    are set; ground -> image searches the time at which the ground point's apparent
+    direction is in the detector plane.
 
     Parameter sets (:attr:`parameter_sets`, :meth:`with_parameter_set`): ``"default"``,
-    ``"linescan"`` (all twelve free) and ``"dg"`` (:func:`dg_parameters`).
+    ``"linescan"`` (all twelve free), ``"dg"`` (:func:`dg_parameters`) and ``"physical"``
+    (:func:`physical_parameters`).
     """
 
     name: ClassVar[str] = "linescan"
     schema_version: ClassVar[int] = 1
-    parameter_sets: ClassVar[tuple[str, ...]] = ("default", "linescan", "dg")
+    parameter_sets: ClassVar[tuple[str, ...]] = ("default", "linescan", "dg", "physical")
 
     #: ray/height-surface intersection: tolerance (metres of height) and iteration cap
     intersection_tolerance_m: ClassVar[float] = 1e-7
@@ -124,6 +159,7 @@ class LinescanModel(SensorModelBase):
         height_range: tuple[float, float] = (-500.0, 9000.0),
         parameters: ParameterSet | None = None,
         location_accuracy_m: float | None = None,
+        corrections: tuple[str, ...] | list[str] | None = None,
     ) -> None:
         try:
             rows, cols = (int(v) for v in shape)
@@ -156,12 +192,13 @@ class LinescanModel(SensorModelBase):
         if not isinstance(parameters, ParameterSet):
             raise fail("LinescanModel.parameters",
                         f"must be a ParameterSet, got {type(parameters).__name__}")
-        unknown = [n for n in parameters.names if n not in PARAMETER_NAMES]
+        unknown = [n for n in parameters.names if n not in _ALL_NAMES]
         if unknown:
             raise fail("LinescanModel.parameters",
-                        f"unknown parameter names {unknown}; known: {list(PARAMETER_NAMES)}")
+                        f"unknown parameter names {unknown}; known: {list(_ALL_NAMES)}")
         if not np.all(np.isfinite(parameters.values)):
             raise fail("LinescanModel.parameters", "values must be finite")
+        corrections = check_corrections(corrections, "LinescanModel.corrections")
         if location_accuracy_m is not None:
             location_accuracy_m = location_accuracy(
                 location_accuracy_m, "LinescanModel.location_accuracy_m (or None)")
@@ -174,10 +211,16 @@ class LinescanModel(SensorModelBase):
         self._height_range = (h0, h1)
         self._parameters = parameters
         self._location_accuracy_m = location_accuracy_m
-        full = np.zeros(12)
-        self._index = np.array([PARAMETER_NAMES.index(n) for n in parameters.names], dtype=np.intp)
+        self._corrections = corrections
+        full = np.zeros(len(_ALL_NAMES))
+        self._index = np.array([_ALL_NAMES.index(n) for n in parameters.names], dtype=np.intp)
         full[self._index] = parameters.values
-        self._full = full  # the 12 values in PARAMETER_NAMES order
+        self._full = full[:12]  # the 12 values in PARAMETER_NAMES order
+        self._focal = 1.0 + float(full[12])  # 1 + focal_scale
+        if not self._focal > 0.1:
+            raise fail("LinescanModel.parameters",
+                       f"focal_scale must be > -0.9 (a principal distance > 0), got "
+                       f"{full[12]!r}")
         self._span = self._search_span()
 
     # ------------------------------------------------------------------ properties
@@ -223,17 +266,23 @@ class LinescanModel(SensorModelBase):
         """The product's stated location accuracy (1 sigma, metres), or None if unknown."""
         return self._location_accuracy_m
 
+    @property
+    def corrections(self) -> tuple[str, ...]:
+        """The light-path corrections applied (:mod:`geoblock.models.linescan.light`)."""
+        return self._corrections
+
     def with_parameters(self, values: ArrayLike | Mapping[str, float]) -> Self:
         return self.replace(parameters=self._parameters.with_values(values))
 
     def replace(self, **changes: Any) -> Self:
         """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``,
-        ``location_accuracy_m=...``)."""
+        ``location_accuracy_m=...``, ``corrections=...``)."""
         args: dict[str, Any] = {
             "shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
             "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
             "height_range": self._height_range, "parameters": self._parameters,
-            "location_accuracy_m": self._location_accuracy_m}
+            "location_accuracy_m": self._location_accuracy_m,
+            "corrections": self._corrections}
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"replace: unknown fields {sorted(unknown)}")
@@ -241,7 +290,8 @@ class LinescanModel(SensorModelBase):
         return type(self)(
             args["shape"], args["ephemeris"], args["attitude"], args["look"], args["line_times"],
             epoch=args["epoch"], height_range=args["height_range"],
-            parameters=args["parameters"], location_accuracy_m=args["location_accuracy_m"])
+            parameters=args["parameters"], location_accuracy_m=args["location_accuracy_m"],
+            corrections=args["corrections"])
 
     # ------------------------------------------------------------------ parameter sets
     def with_parameter_set(self, name: str, **options: Any) -> Self:
@@ -249,17 +299,24 @@ class LinescanModel(SensorModelBase):
 
         Parameters
         ----------
-        name : {"default", "linescan", "dg"}
+        name : {"default", "linescan", "dg", "physical"}
             * ``"default"``: the parameters as they are (returns ``self``);
             * ``"linescan"``: all twelve :data:`PARAMETER_NAMES`, free (infinite sigmas),
               adjustable;
             * ``"dg"``: Teo et al.'s direct-georeferencing set, :func:`dg_parameters`:
               position biases and drifts and attitude biases adjustable
               (:data:`DG_ADJUSTABLE`) with a-priori sigmas from the location accuracy,
-              attitude rates fixed.
+              attitude rates fixed;
+            * ``"physical"``: a physical set in the spirit of Toutin's CCRS model,
+              :func:`physical_parameters`: attitude biases and drifts, along- and
+              across-track position biases and the focal scale (:data:`PHYSICAL_ADJUSTABLE`),
+              a-priori sigmas from the location accuracy.
+
+            A ``focal_scale`` other than 0 stays in every set (fixed where the set does not
+            adjust it).
         **options
-            ``accuracy_m`` (float, ``"dg"`` only): the location accuracy (1 sigma, metres) the
-            sigmas derive from; default :attr:`location_accuracy_m`.
+            ``accuracy_m`` (float, ``"dg"`` and ``"physical"``): the location accuracy
+            (1 sigma, metres) the sigmas derive from; default :attr:`location_accuracy_m`.
 
         Returns
         -------
@@ -280,14 +337,25 @@ class LinescanModel(SensorModelBase):
         if name == "linescan":
             self._parameter_set_request(name, options)
             params = ParameterSet(PARAMETER_NAMES, self._full, PARAMETER_UNITS)
-        elif name == "dg":
+        elif name in ("dg", "physical"):
             self._parameter_set_request(name, options, ("accuracy_m",))
             accuracy = accuracy_or_stored(options.get("accuracy_m"), self._location_accuracy_m,
-                                          f"{type(self).__qualname__} {self.name!r}", "dg")
-            params = dg_parameters(self, accuracy).with_values(self._full)
+                                          f"{type(self).__qualname__} {self.name!r}", name)
+            preset = dg_parameters if name == "dg" else physical_parameters
+            params = preset(self, accuracy)
         else:
             return super().with_parameter_set(name, **options)
-        return self.replace(parameters=params)
+        return self.replace(parameters=self._keep_values(params))
+
+    def _keep_values(self, params: ParameterSet) -> ParameterSet:
+        """``params`` with the current values, and a non-zero focal scale kept (fixed)."""
+        if self._focal != 1.0 and "focal_scale" not in params.names:
+            params = ParameterSet(
+                params.names + ("focal_scale",), np.append(params.values, 0.0),
+                params.units + ("1",), np.append(params.sigmas, np.inf),
+                np.append(params.adjustable, False))
+        full = np.append(self._full, self._focal - 1.0)
+        return params.with_values(full[[_ALL_NAMES.index(n) for n in params.names]])
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
@@ -305,6 +373,8 @@ class LinescanModel(SensorModelBase):
         }
         if self._location_accuracy_m is not None:  # absent from older JSON: stays optional
             out["location_accuracy_m"] = self._location_accuracy_m
+        if self._corrections:  # likewise
+            out["corrections"] = list(self._corrections)
         return out
 
     @classmethod
@@ -327,6 +397,7 @@ class LinescanModel(SensorModelBase):
                 parameters=ParameterSet.from_dict(data["parameters"])
                 if "parameters" in data else None,
                 location_accuracy_m=data.get("location_accuracy_m"),
+                corrections=data.get("corrections"),
             )
         except KeyError as exc:
             raise SerializationError(f"{cls.name}: missing field {exc}") from exc
@@ -417,8 +488,14 @@ class LinescanModel(SensorModelBase):
     def image_to_ground(self, row: np.ndarray, col: np.ndarray, h: np.ndarray
                         ) -> tuple[Float64Array, Float64Array, StatusArray]:
         t = self._line_times.time(row)
-        pos, _, rot, _ = self._state(t)
-        u = np.einsum("nij,nj->ni", rot, self._look.at(col))
+        pos, vel, rot, _ = self._state(t)
+        look = self._look.at(col)
+        if self._focal != 1.0:
+            look = look * np.array([1.0, 1.0, self._focal])
+            look /= np.linalg.norm(look, axis=-1, keepdims=True)
+        u = np.einsum("nij,nj->ni", rot, look)
+        if self._corrections:
+            u = geometric_direction(u, pos, vel, h, self._corrections)
         lon, lat, _, status = coords.intersect_height(pos, u, h, self.intersection_tolerance_m,
                                                       self.intersection_max_iterations)
         status[~np.all(np.isfinite(pos), axis=1) | ~np.all(np.isfinite(u), axis=1)] = _OUT
@@ -426,25 +503,39 @@ class LinescanModel(SensorModelBase):
         return lon, lat, status
 
     # ------------------------------------------------------------------ ground -> image
-    def _residual(self, g: np.ndarray, pos: np.ndarray, rot: np.ndarray
-                  ) -> tuple[Float64Array, Float64Array, Float64Array]:
-        """Detector-plane residual at ground points g for states (pos, rot).
+    def _apparent(self, g: np.ndarray, h: np.ndarray, pos: np.ndarray, vel: np.ndarray
+                  ) -> np.ndarray:
+        """``G - P`` (N, 3), turned to the apparent line of sight when corrections are set."""
+        diff = g - pos
+        if not self._corrections:
+            return diff
+        rng = np.linalg.norm(diff, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            u = diff / rng[:, None]
+        pos, vel = np.broadcast_to(pos, g.shape), np.broadcast_to(vel, g.shape)
+        return apparent_direction(u, pos, vel, h, self._corrections) * rng[:, None]
+
+    def _residual(self, g: np.ndarray, h: np.ndarray, pos: np.ndarray, vel: np.ndarray,
+                  rot: np.ndarray) -> tuple[Float64Array, Float64Array, Float64Array]:
+        """Detector-plane residual at ground points g (heights h) for states (pos, vel, rot).
 
         Returns ``f = d_x/d_z - tan_x(col)``, ``col``, ``d`` (N, 3) in the sensor frame.
         """
-        diff = g - pos
+        diff = self._apparent(g, h, pos, vel)
         if rot.ndim == 2:
             d = diff @ rot
         else:
             d = np.einsum("nji,nj->ni", rot, diff)
         with np.errstate(invalid="ignore", divide="ignore"):
             ry = d[:, 1] / d[:, 2]
-            col, tx, _ = self._look.invert(ry)
-            f = d[:, 0] / d[:, 2] - tx
+            col, tx, _ = self._look.invert(ry * self._focal)
+            f = d[:, 0] / d[:, 2] - tx / self._focal
         return f, col, d
 
-    def _solve_time(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Exposure time and column of ground points g (N, 3) ECEF; with a status."""
+    def _solve_time(self, g: np.ndarray, h: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exposure time and column of ground points g (N, 3) ECEF, heights h (N,); with a
+        status."""
         n = g.shape[0]
         t_out = np.full(n, np.nan)
         col_out = np.full(n, np.nan)
@@ -453,9 +544,9 @@ class LinescanModel(SensorModelBase):
         if not lo < hi:
             return t_out, col_out, status
         ends = np.array([lo, hi])
-        p_end, _, r_end, _ = self._state(ends)
-        fa, _, da = self._residual(g, p_end[0], r_end[0])
-        fb, _, db = self._residual(g, p_end[1], r_end[1])
+        p_end, v_end, r_end, _ = self._state(ends)
+        fa, _, da = self._residual(g, h, p_end[0], v_end[0], r_end[0])
+        fb, _, db = self._residual(g, h, p_end[1], v_end[1], r_end[1])
         ok = (np.isfinite(fa) & np.isfinite(fb) & (da[:, 2] > 0) & (db[:, 2] > 0)
               & (np.sign(fa) != np.sign(fb)))
         idx = np.flatnonzero(ok)
@@ -465,20 +556,20 @@ class LinescanModel(SensorModelBase):
         x0, f0, x1, f1 = a.copy(), fa.copy(), b.copy(), fb.copy()
         col1 = np.full(idx.size, np.nan)
         dz1 = np.full(idx.size, np.nan)
-        gi = g[idx]
+        gi, hi_ = g[idx], h[idx]
         tol = self.search_tolerance_lines * self._line_times.line_period_s
         stall = self.search_stall_lines * self._line_times.line_period_s
         status[idx] = Status.MAX_ITERATIONS
 
         def finish(fin: np.ndarray, good: np.ndarray) -> None:
-            nonlocal idx, gi, a, fa, b, fb, x0, f0, x1, f1, col1, dz1
+            nonlocal idx, gi, hi_, a, fa, b, fb, x0, f0, x1, f1, col1, dz1
             sel = idx[fin]
             t_out[sel] = x1[fin]
             col_out[sel] = col1[fin]
             status[sel] = np.where(good[fin] & (dz1[fin] > 0), _CONVERGED,
                                    np.uint8(Status.DIVERGED))
             keep = ~fin
-            idx, gi = idx[keep], gi[keep]
+            idx, gi, hi_ = idx[keep], gi[keep], hi_[keep]
             a, fa, b, fb = a[keep], fa[keep], b[keep], fb[keep]
             x0, f0, x1, f1 = x0[keep], f0[keep], x1[keep], f1[keep]
             col1, dz1 = col1[keep], dz1[keep]
@@ -504,8 +595,8 @@ class LinescanModel(SensorModelBase):
                     x = x[~(done | bad)]
             inside = (x > np.minimum(a, b)) & (x < np.maximum(a, b))
             x = np.where(inside, x, 0.5 * (a + b))
-            pos, _, rot, _ = self._state(x)
-            f, col, d = self._residual(gi, pos, rot)
+            pos, vel, rot, _ = self._state(x)
+            f, col, d = self._residual(gi, hi_, pos, vel, rot)
             same = np.sign(f) == np.sign(fa)  # keep the bracket
             a = np.where(same, x, a)
             fa = np.where(same, f, fa)
@@ -530,7 +621,7 @@ class LinescanModel(SensorModelBase):
                     lon[keep], lat[keep], h[keep])
             return row, col, status
         g = np.stack(coords.geodetic_to_ecef(lon, lat, h), axis=-1)
-        t, col, status = self._solve_time(g)
+        t, col, status = self._solve_time(g, h)
         return self._line_times.row(t), col, status
 
     def ground_seed(self) -> tuple[float, float]:
@@ -545,16 +636,31 @@ class LinescanModel(SensorModelBase):
     def _implicit(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[
             tuple[int, ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
             np.ndarray]:
-        """Solve the point, then the (N, 2, 2) Jacobian of (E1, E2) in (t, col) and pieces."""
+        """Solve the point, then the (N, 2, 2) Jacobian of (E1, E2) in (t, col) and pieces.
+
+        ``rot`` is returned as ``R'`` times the (N, 3, 3) Jacobian of the light-path
+        corrections' map ``G - P -> apparent line of sight`` (identity without corrections),
+        so that ``d(d)/d(G - P) = rot^T``.
+        """
         lon, lat, h = (np.asarray(v, np.float64) for v in np.broadcast_arrays(lon, lat, h))
         shape = lon.shape
         g = np.stack(coords.geodetic_to_ecef(lon.ravel(), lat.ravel(), h.ravel()), axis=-1)
-        t, col, status = self._solve_time(g)
+        t, col, status = self._solve_time(g, h.ravel())
         ok = status == _CONVERGED
         t = np.where(ok, t, np.nan)
-        pos, _, rot, m_orb = self._state(t)
-        diff = g - pos
+        pos, vel, rot, m_orb = self._state(t)
+        hr = h.ravel()
+        diff = self._apparent(g, hr, pos, vel)
         d = np.einsum("nji,nj->ni", rot, diff)
+        if self._corrections:
+            # Jacobian of the corrections (I + O(1e-5)) by central differences of 1 m
+            jac_a = np.empty((t.size, 3, 3))
+            for k in range(3):
+                step = np.zeros(3)
+                step[k] = 1.0
+                jac_a[:, :, k] = 0.5 * (self._apparent(g + step, hr, pos, vel)
+                                        - self._apparent(g - step, hr, pos, vel))
+            rot = np.swapaxes(jac_a, -1, -2) @ rot  # (R^T J)^T
         dz = d[:, 2]
         with np.errstate(invalid="ignore", divide="ignore"):
             # d(E1, E2)/d(d): E1 = d_x/d_z - Tx, E2 = d_y/d_z - Ty
@@ -563,13 +669,14 @@ class LinescanModel(SensorModelBase):
             de_dd[:, 0, 2] = -d[:, 0] / (dz * dz)
             de_dd[:, 1, 1] = 1.0 / dz
             de_dd[:, 1, 2] = -d[:, 1] / (dz * dz)
-            _, _, dtan = self._look.invert(d[:, 1] / dz)
+            _, _, dtan = self._look.invert(d[:, 1] / dz * self._focal)
+            dtan = dtan / self._focal
             # d(E)/dt at fixed G and col: central difference of the sensor-frame ratios
             step = self.partials_time_step_s
             ratios = []
             for sign in (1.0, -1.0):
-                p_s, _, r_s, _ = self._state(t + sign * step)
-                ds = np.einsum("nji,nj->ni", r_s, g - p_s)
+                p_s, v_s, r_s, _ = self._state(t + sign * step)
+                ds = np.einsum("nji,nj->ni", r_s, self._apparent(g, hr, p_s, v_s))
                 ratios.append(ds[:, :2] / ds[:, 2:3])
             de_dt = (ratios[0] - ratios[1]) / (2.0 * step)
         jac = np.stack([de_dt, -dtan], axis=-1)  # (N, 2, 2): columns d/dt, d/dcol
@@ -599,7 +706,7 @@ class LinescanModel(SensorModelBase):
         shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
         n = t.size
         dt = t - self._line_times.reference_time_s
-        dd_dp = np.empty((n, 3, 12))
+        dd_dp = np.zeros((n, 3, len(_ALL_NAMES)))
         # position: d = R'^T (G - P'), dP'/dp = M_orb[:, :, k] (x dt for the rates)
         rt_m = np.einsum("nji,njk->nik", rot, m_orb)  # R'^T M_orb
         rt_m[:, :, 2] *= -1.0  # radial is up = -z_o
@@ -616,7 +723,11 @@ class LinescanModel(SensorModelBase):
             col = -np.cross(axis, d)
             dd_dp[:, :, 6 + k] = col
             dd_dp[:, :, 9 + k] = col * dt[:, None]
-        de_dp = de_dd @ dd_dp  # (N, 2, 12)
+        de_dp = de_dd @ dd_dp  # (N, 2, 13)
+        # focal scale: E = d_xy/d_z - tan0(col) / (1 + s), so dE/ds = tan'(col) / (1 + s),
+        # and tan'(col) = d_xy/d_z at the solution
+        with np.errstate(invalid="ignore", divide="ignore"):
+            de_dp[:, :, 12] = d[:, :2] / d[:, 2:3] / self._focal
         with np.errstate(invalid="ignore", divide="ignore"):
             sol = -np.linalg.solve(_nan_safe(jac), de_dp)
         sol[~np.isfinite(t)] = np.nan
@@ -702,6 +813,60 @@ def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
         ``accuracy_m`` is not a number > 0 (a ``ValueError``).
     """
     sigma = location_accuracy(accuracy_m, "dg_parameters: accuracy_m", ParameterSetError)
+    half_t, slant, lever, _ = _geometry_scales(model)
+    angle = sigma / slant
+    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
+                      + [angle, angle, sigma / lever] + [angle / half_t] * 3)
+    adjustable = np.array([n in DG_ADJUSTABLE for n in PARAMETER_NAMES])
+    return ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS, sigmas, adjustable)
+
+
+def physical_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
+    """A physical parameter set in the spirit of Toutin's CCRS model, sigmas from a location
+    accuracy.
+
+    Attitude biases and drifts (roll, pitch, yaw), along- and across-track position biases
+    and the focal scale are adjustable (:data:`PHYSICAL_ADJUSTABLE`); the radial position bias
+    and the position drifts stay in the set, fixed at 0 (the attitude drifts absorb them over
+    a scene's few seconds). :meth:`LinescanModel.with_parameter_set` ``("physical")`` gives
+    the model with this set (and its current parameter values).
+
+    Parameters
+    ----------
+    model : LinescanModel
+        The model whose geometry scales the sigmas (its parameter values are not used).
+    accuracy_m : float
+        The product's location accuracy, metres (1 sigma), > 0.
+
+    Returns
+    -------
+    ParameterSet
+        The twelve linescan names and ``focal_scale``, values 0. Sigmas, with
+        ``s = accuracy_m``, as in :func:`dg_parameters` (position ``s``; roll/pitch bias
+        ``s / D``; yaw bias ``s / L``; rates ``(bias sigma) / (T/2)``), and focal scale
+        ``s / W`` (``W`` the ground distance from the centre of the centre row to its farther
+        end: a focal scale moves the swath edges by ``W`` times it).
+
+    Raises
+    ------
+    ParameterSetError
+        ``accuracy_m`` is not a number > 0 (a ``ValueError``).
+    """
+    sigma = location_accuracy(accuracy_m, "physical_parameters: accuracy_m", ParameterSetError)
+    half_t, slant, lever, half_swath = _geometry_scales(model)
+    angle = sigma / slant
+    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
+                      + [angle, angle, sigma / lever]
+                      + [angle / half_t, angle / half_t, sigma / lever / half_t]
+                      + [sigma / half_swath])
+    adjustable = np.array([n in PHYSICAL_ADJUSTABLE for n in _ALL_NAMES])
+    return ParameterSet(_ALL_NAMES, np.zeros(13), _ALL_UNITS, sigmas, adjustable)
+
+
+def _geometry_scales(model: LinescanModel) -> tuple[float, float, float, float]:
+    """``(T/2, D, L, W)``: half the image duration (s), the slant range at the image centre,
+    the ground distance from the nadir point to the farther end of the centre row (yaw's
+    lever arm) and from the centre to the farther end of the centre row (metres)."""
     rows, cols = model.shape
     free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
     half_t = 0.5 * rows * model.line_times.line_period_s
@@ -711,12 +876,9 @@ def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
     sat, _, _ = free.sensor_state(centre[0])
     slant = float(np.linalg.norm(ground[0] - sat))
     nadir = np.stack(coords.geodetic_to_ecef(*coords.ecef_to_geodetic(*sat)[:2], 0.0), axis=-1)
-    lever = float(np.max(np.linalg.norm(ground[1:] - nadir, axis=-1)))  # yaw's lever arm
-    angle = sigma / slant
-    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
-                      + [angle, angle, sigma / lever] + [angle / half_t] * 3)
-    adjustable = np.array([n in DG_ADJUSTABLE for n in PARAMETER_NAMES])
-    return ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS, sigmas, adjustable)
+    lever = float(np.max(np.linalg.norm(ground[1:] - nadir, axis=-1)))
+    half_swath = float(np.max(np.linalg.norm(ground[1:] - ground[0], axis=-1)))
+    return half_t, slant, lever, half_swath
 
 
 # ==================================================================================== internals
