@@ -59,12 +59,16 @@ def _validate(cls: object, plugin: str) -> None:
 class ModelRegistry:
     """Sensor-model classes by name, each with the plugin that registered it.
 
-    Iterating yields the names; ``name in registry`` tests membership.
+    Iterating yields the names; ``name in registry`` tests membership. A model class may
+    declare ``aliases`` (a class attribute, a tuple of lowercase-kebab names, e.g.
+    ``("quickbird", "worldview")`` for ``dg-rigorous``): :meth:`get`, ``in`` and
+    :meth:`from_dict` accept them too; :meth:`names` lists the canonical names.
     """
 
     def __init__(self) -> None:
         self._classes: dict[str, type[SensorModel]] = {}
         self._owners: dict[str, str] = {}
+        self._aliases: dict[str, str] = {}  # alias -> canonical name
 
     def register(self, cls: type[SensorModel], *, plugin: str = "<direct>") -> None:
         """Add a model class under ``cls.name``.
@@ -78,23 +82,33 @@ class ModelRegistry:
         """
         _validate(cls, plugin)
         name = cls.name
-        if name in self._classes:
-            other = self._owners[name]
-            raise DuplicateModelError(
-                f"sensor model name {name!r} is registered twice: by plugin {other!r} "
-                f"({self._classes[name].__module__}.{self._classes[name].__qualname__}) and by "
-                f"plugin {plugin!r} ({cls.__module__}.{cls.__qualname__}); uninstall one of them "
-                "or restrict loading with GEOBLOCK_PLUGINS",
-                plugin_name=plugin,
-            )
+        aliases = getattr(cls, "aliases", ())
+        if isinstance(aliases, str) or not all(
+                isinstance(a, str) and _NAME.match(a) for a in aliases):
+            raise PluginError(
+                f"plugin {plugin!r}: model class {cls.__qualname__}: `aliases` must be a tuple "
+                f"of names matching {_NAME.pattern}, got {aliases!r}", plugin_name=plugin)
+        for key in (name, *aliases):
+            if key in self._classes or key in self._aliases:
+                owner = self._aliases.get(key, key)
+                other = self._classes[owner]
+                raise DuplicateModelError(
+                    f"sensor model name {key!r} is registered twice: by plugin "
+                    f"{self._owners[owner]!r} ({other.__module__}.{other.__qualname__}) and by "
+                    f"plugin {plugin!r} ({cls.__module__}.{cls.__qualname__}); uninstall one of "
+                    "them or restrict loading with GEOBLOCK_PLUGINS",
+                    plugin_name=plugin,
+                )
         self._classes[name] = cls
         self._owners[name] = plugin
+        for alias in aliases:
+            self._aliases[alias] = name
 
     def get(self, name: str) -> type[SensorModel]:
         """The class registered as ``name``; :class:`UnknownModelError` lists the known ones."""
         try:
-            return self._classes[name]
-        except KeyError:
+            return self._classes[self._aliases.get(name, name)]
+        except (KeyError, TypeError):
             raise UnknownModelError(
                 f"no sensor model named {name!r}; registered models: "
                 f"{', '.join(self.names()) or '(none)'}. Is its plugin installed? "
@@ -104,14 +118,18 @@ class ModelRegistry:
     def owner(self, name: str) -> str:
         """The plugin that registered ``name``."""
         self.get(name)
-        return self._owners[name]
+        return self._owners[self._aliases.get(name, name)]
 
     def names(self) -> list[str]:
         """Registered model names, sorted."""
         return sorted(self._classes)
 
+    def aliases(self) -> dict[str, str]:
+        """Alias -> canonical name of every registered alias."""
+        return dict(self._aliases)
+
     def __contains__(self, name: object) -> bool:
-        return name in self._classes
+        return name in self._classes or name in self._aliases
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.names())
@@ -144,7 +162,7 @@ class ModelRegistry:
         if not isinstance(version, int) or version > cls.schema_version or version < 1:
             raise SerializationError(
                 f"model {name!r}: schema_version {version!r} is not supported by the installed "
-                f"plugin {self._owners[name]!r} (it reads versions 1..{cls.schema_version}); "
+                f"plugin {self.owner(name)!r} (it reads versions 1..{cls.schema_version}); "
                 "upgrade the plugin"
             )
         try:
