@@ -354,3 +354,36 @@ def test_enable_and_disable_a_plugin_module(site):
     finally:
         disable_plugin_module("gb_dev")
     assert "dev-camera" not in get_registry()
+
+
+# ============================================================================ aliases
+def test_aliases_resolve_to_the_class_and_clash_like_names():
+    from geoblock.models.registry import ModelRegistry
+    from geoblock.testing.synthetic import AffineCamera
+
+    class Aliased(AffineCamera):
+        name = "aliased-camera"
+        aliases = ("alias-one", "alias-two")
+
+    class Clash(AffineCamera):
+        name = "other-camera"
+        aliases = ("alias-two",)
+
+    registry = ModelRegistry()
+    registry.register(Aliased, plugin="a")
+    assert registry.get("alias-one") is registry.get("aliased-camera") is Aliased
+    assert "alias-two" in registry and registry.names() == ["aliased-camera"]
+    assert registry.aliases() == {"alias-one": "aliased-camera", "alias-two": "aliased-camera"}
+    assert registry.owner("alias-one") == "a"
+    data = Aliased.example().to_dict()
+    data["model"] = "alias-one"
+    assert registry.from_dict(data) == Aliased.example()
+    with pytest.raises(DuplicateModelError, match="'alias-two'.*'a'.*'b'"):
+        registry.register(Clash, plugin="b")
+
+
+def test_the_digitalglobe_model_is_found_by_its_aliases():
+    from geoblock.plugins import get_registry
+
+    registry = get_registry()
+    assert registry.get("quickbird") is registry.get("worldview") is registry.get("dg-rigorous")

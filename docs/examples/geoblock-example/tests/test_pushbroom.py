@@ -14,7 +14,8 @@ from geoblock.testing import SensorModelContract
 
 
 class TestPushbroomFromMetadata(SensorModelContract):
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}}  # "dg" needs a location accuracy
+    # "dg" and "physical" derive their sigmas from a location accuracy
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
 
     @pytest.fixture
     def model(self):

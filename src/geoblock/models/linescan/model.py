@@ -656,10 +656,10 @@ class LinescanModel(SensorModelBase):
             # Jacobian of the corrections (I + O(1e-5)) by central differences of 1 m
             jac_a = np.empty((t.size, 3, 3))
             for k in range(3):
-                step = np.zeros(3)
-                step[k] = 1.0
-                jac_a[:, :, k] = 0.5 * (self._apparent(g + step, hr, pos, vel)
-                                        - self._apparent(g - step, hr, pos, vel))
+                unit = np.zeros(3)
+                unit[k] = 1.0
+                jac_a[:, :, k] = 0.5 * (self._apparent(g + unit, hr, pos, vel)
+                                        - self._apparent(g - unit, hr, pos, vel))
             rot = np.swapaxes(jac_a, -1, -2) @ rot  # (R^T J)^T
         dz = d[:, 2]
         with np.errstate(invalid="ignore", divide="ignore"):
