@@ -131,10 +131,3 @@ def keyword_product():
     """:func:`write_keyword_product` (the tests run with --import-mode=importlib)."""
     return write_keyword_product
 
-
-@pytest.fixture(scope="session")
-def data_dir_optional() -> Path:
-    """As :func:`data_dir` (a separate name so that contract fixtures can depend on it)."""
-    if not DATA_DIR.is_dir():
-        pytest.skip(f"real test data not found at {DATA_DIR} (set GEOBLOCK_TEST_DATA)")
-    return DATA_DIR

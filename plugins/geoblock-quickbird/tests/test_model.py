@@ -150,7 +150,7 @@ class TestDigitalGlobeContract(SensorModelContract):
     """The conformance kit on the real WorldView-2 model and on the example, every preset."""
 
     @pytest.fixture(params=["wv_test1", "example"])
-    def model(self, request, data_dir_optional):
+    def model(self, request, data_dir):
         if request.param == "example":
             return DigitalGlobeModel.example()
-        return open_model(data_dir_optional / "stereopipeline/tests/wv_test1.xml")
+        return open_model(data_dir / "stereopipeline/tests/wv_test1.xml")

@@ -77,10 +77,13 @@ class IsdFormatError(ModelFormatError):
         The section and field (``EPH.EPHEMLIST[3]``).
     """
 
-    def __init__(self, path: str | os.PathLike[str], field: str, problem: str) -> None:
+    def __init__(self, path: str | os.PathLike[str], field: str, problem: str,
+                 missing: tuple[str, ...] = ()) -> None:
         super().__init__(f"{str(path)!r}: ISD field {field}: {problem}")
         self.path = str(path)
         self.field = field
+        #: the physical sections absent (an RPC-only product), else ()
+        self.missing = missing
 
 
 def _error(source: str, field: str, problem: str) -> IsdFormatError:
@@ -154,6 +157,8 @@ class Isd:
         The ``TIL`` section's tiles (empty without one).
     has_rpb : bool
         Whether the support data hold an ``RPB`` section (``model="rpc"`` reads it).
+    rpb_height_range : (float, float) or None
+        ``HEIGHTOFFSET -/+ HEIGHTSCALE`` of the RPB, metres, when it states them.
     """
 
     path: Path
@@ -181,6 +186,7 @@ class Isd:
     perspective_centre_m: tuple[float, float, float]
     tiles: tuple[Tile, ...] = field(default=())
     has_rpb: bool = False
+    rpb_height_range: tuple[float, float] | None = None
 
     def tile(self, name: str) -> Tile | None:
         """The tile whose file name (or stem) is ``name``'s, case-insensitively, or None."""
@@ -301,7 +307,7 @@ def _xml_tree(element: ET.Element) -> Any:
             key = child.tag[:-4].upper()
         value = _xml_tree(child)
         if key in out:
-            if not isinstance(out[key], list) or key == "TILE" and isinstance(out[key], dict):
+            if not isinstance(out[key], list):
                 out[key] = [out[key]]
             out[key].append(value)
         else:
@@ -409,11 +415,7 @@ def _load(found: Path | dict[str, Path]) -> tuple[dict[str, Any], dict[str, Path
 
 
 def _fields(trees: dict[str, Any], sources: dict[str, Path], section: str) -> Fields:
-    if section not in trees or not isinstance(trees[section], Mapping):
-        where = next(iter(sources.values()))
-        raise IsdFormatError(sources.get(section, where), section,
-                             "section missing (the rigorous model needs IMD, EPH, ATT and GEO; "
-                             "an RPC-only product opens with model='rpc')")
+    """A present section (read_isd checks the physical sections first) as Fields."""
     return Fields(str(sources[section]), trees[section], f"{section}.", _error)
 
 
@@ -482,7 +484,8 @@ def read_isd(path: str | os.PathLike[str]) -> Isd:
     if missing:
         raise IsdFormatError(next(iter(sources.values()), p), "/".join(missing),
                              "section missing (the rigorous model needs IMD, EPH, ATT and GEO; "
-                             "an RPC-only product opens with model='rpc')")
+                             "an RPC-only product opens with model='rpc')",
+                             missing=tuple(missing))
     imd = _fields(trees, sources, "IMD")
     image = imd.table("IMAGE", required=True)
     rows = imd.number("NUMROWS", from_text=True, integer=True, low=1, high=MAX_IMAGE_SIZE)
@@ -552,7 +555,23 @@ def read_isd(path: str | os.PathLike[str]) -> Isd:
         detector_rotation_deg=detector["DETROTANGLE"], detector_pitch_mm=detector["DETPITCH"],
         camera_attitude=qcs,  # type: ignore[arg-type]
         perspective_centre_m=pc,  # type: ignore[arg-type]
-        tiles=tiles, has_rpb="RPB" in trees)
+        tiles=tiles, has_rpb="RPB" in trees, rpb_height_range=_rpb_heights(trees, sources))
+
+
+def _rpb_heights(trees: dict[str, Any], sources: dict[str, Path]) -> tuple[float, float] | None:
+    """``HEIGHTOFFSET -/+ HEIGHTSCALE`` of the RPB section (its ``IMAGE`` group), if stated;
+    a malformed RPB is left to geoblock-rpc to report (``model="rpc"``)."""
+    rpb = trees.get("RPB")
+    image = rpb.get("IMAGE") if isinstance(rpb, Mapping) else None
+    if not isinstance(image, Mapping):
+        return None
+    f = Fields(str(sources["RPB"]), image, "RPB.IMAGE.", _error)
+    try:
+        offset = f.number("HEIGHTOFFSET", from_text=True)
+        scale = f.number("HEIGHTSCALE", from_text=True, low=0.0, strict_low=True)
+    except IsdFormatError:
+        return None
+    return offset - scale, offset + scale
 
 
 def _tlc(image: Fields) -> np.ndarray:

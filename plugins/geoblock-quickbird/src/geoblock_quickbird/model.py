@@ -211,7 +211,7 @@ def dg_model(
                                  f"{isd.epoch}) does not cover the image's rows "
                                  f"({t_rows[0]:.3f} s to {t_rows[1]:.3f} s)")
     if height_range is None:
-        height_range = _rpb_heights(isd) or (-500.0, 9000.0)
+        height_range = isd.rpb_height_range or (-500.0, 9000.0)
     try:
         model = DigitalGlobeModel((rows, cols), ephemeris, attitude, look, line_times,
                                   epoch=isd.epoch, height_range=tuple(height_range),
@@ -234,20 +234,6 @@ def dg_model(
                              f"no tile named {Path(tile).name!r}; tiles: "
                              f"{[t.filename for t in isd.tiles][:8]}")
     return CroppedModel(model, found.offset, found.shape)
-
-
-def _rpb_heights(isd: Isd) -> tuple[float, float] | None:
-    """``HEIGHTOFFSET -/+ HEIGHTSCALE`` of the RPB section, if readable."""
-    if not isd.has_rpb:
-        return None
-    from geoblock.io import open_model
-
-    try:
-        rpc = open_model(isd.sources["RPB"], model="rpc")
-    except Exception:  # an unreadable RPB: the default range; model="rpc" reports it
-        return None
-    h0, h1 = rpc.height_range
-    return (float(h0), float(h1)) if h1 > h0 else None
 
 
 def _with_parameters(model: DigitalGlobeModel, parameters: str | ParameterSet,

@@ -39,33 +39,23 @@ def geoblock_read_sensor_model(path, model_name, options):
             return None
         raise IsdFormatError(path, "(file)", f"model {model_name!r} needs DigitalGlobe support "
                                              "data (an <isd> XML or .IMD/.EPH/.ATT/.GEO files)")
-    from geoblock_quickbird.isd import PHYSICAL_SECTIONS, read_isd
+    from geoblock_quickbird.isd import read_isd
     from geoblock_quickbird.model import dg_model
 
-    if model_name is None and not _has_physical_sections(found, PHYSICAL_SECTIONS):
-        return None
+    try:
+        isd = read_isd(path)
+    except IsdFormatError as exc:
+        if model_name is None and exc.missing:  # an RPC-only product: geoblock-rpc's
+            return None
+        raise
     unknown = sorted(set(options) - set(OPTIONS))
     if unknown:
         raise IsdFormatError(path, "(options)", f"unknown option(s) {unknown} for a "
                                                 f"DigitalGlobe model; known: {list(OPTIONS)}")
     opts = dict(options)
-    isd = read_isd(path)
     if "tile" not in opts and isd.tile(str(path)) is not None and not _is_support_file(path):
         opts["tile"] = str(path)
     return dg_model(isd, **opts)
-
-
-def _has_physical_sections(found, sections) -> bool:
-    """Whether the support data hold the sections the rigorous model needs (cheap: tags or
-    files, no parsing)."""
-    from pathlib import Path
-
-    if isinstance(found, dict):
-        return all(s in found for s in sections)
-    from geoblock.io.metadata import read_bytes
-
-    data = read_bytes(Path(found))
-    return all(f"<{s}>".encode() in data for s in sections)
 
 
 def _is_support_file(path) -> bool:
