@@ -202,11 +202,11 @@ def test_refine_write_checks_every_format_before_writing_anything(
     first.write_text("keep me\n")  # an existing destination is not touched either
     result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
                                  "--write", f"json:{first}",
-                                 "--write", f"rpc-txt:{tmp_path / 'x_RPC.TXT'}"])
+                                 "--write", f"nitf:{tmp_path / 'x.ntf'}"])
     assert result.exit_code == 1, result.output
-    assert "rpc-txt" in result.stderr and str(tmp_path / "x_RPC.TXT") in result.stderr
+    assert "nitf" in result.stderr and str(tmp_path / "x.ntf") in result.stderr
     assert not main.exists() and first.read_text() == "keep me\n"
-    assert not (tmp_path / "x_RPC.TXT").exists()
+    assert not (tmp_path / "x.ntf").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".geoblock-refine")]
     result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
                                  "--write", f"{tmp_path / 'x.txt'}"])

@@ -81,8 +81,8 @@ def test_from_dict_errors(affine_camera):
 def test_write_errors(tmp_path, affine_camera):
     with pytest.raises(UnsupportedFormatError, match="pass format="):
         geoblock.write_model(affine_camera, tmp_path / "m.txt")
-    with pytest.raises(UnsupportedFormatError, match="as 'rpc-txt'"):
-        geoblock.write_model(affine_camera, tmp_path / "m.txt", format="rpc-txt")
+    with pytest.raises(UnsupportedFormatError, match="as 'nitf'"):
+        geoblock.write_model(affine_camera, tmp_path / "m.txt", format="nitf")
     with pytest.raises(GeoblockIOError, match="does not exist"):
         geoblock.write_model(affine_camera, tmp_path / "no" / "m.json")
 

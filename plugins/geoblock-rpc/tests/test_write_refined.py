@@ -52,8 +52,9 @@ def test_a_refit_worse_than_the_limit_is_refused(tmp_path):
     assert not (tmp_path / "m_RPC.TXT").exists()
 
 
-def test_non_rpc_models_are_not_claimed(tmp_path):
+def test_non_rpc_models_are_fitted(tmp_path):
     from geoblock.testing.synthetic import AffineCamera
 
-    with pytest.raises(geoblock.errors.UnsupportedFormatError, match="as 'rpc-txt'"):
+    with pytest.warns(geoblock.errors.GeoblockWarning, match="FITTED"):
         geoblock.write_model(AffineCamera.example(), tmp_path / "m_RPC.TXT", format="rpc-txt")
+    assert geoblock.open_model(tmp_path / "m_RPC.TXT").name == "rpc"

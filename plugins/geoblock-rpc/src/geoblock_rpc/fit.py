@@ -27,6 +27,7 @@ import numpy as np
 from geoblock.errors import AdjustmentError, GeoblockWarning
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
+from geoblock_rpc.rational import solve_ratios
 from geoblock_rpc.rpc00b import Rpc00b, evaluate_terms
 
 __all__ = ["FitStats", "check_grid", "fit_rpc", "image_grid"]
@@ -49,6 +50,10 @@ class FitStats:
         Grid points used (points the model could not backproject are dropped).
     iterations : int
         Reweighting iterations run.
+    regularization : float
+        Tikhonov weight of the last iteration (on the unit-norm columns; 0: none).
+    condition : float
+        Condition number of the column-scaled design (without the Tikhonov term).
     grid, check : tuple of int
         ``(rows, cols, heights)`` nodes of the fit and check grids.
     """
@@ -62,6 +67,8 @@ class FitStats:
     n_fit: int
     n_check: int
     iterations: int
+    regularization: float
+    condition: float
     grid: tuple[int, int, int]
     check: tuple[int, int, int]
 
@@ -69,7 +76,8 @@ class FitStats:
         return (
             f"RPC fit: check-grid error RMS {self.rms_px:.3g} px, max {self.max_px:.3g} px "
             f"({self.n_check} points); fit grid RMS {self.fit_rms_px:.3g} px "
-            f"({self.n_fit} points, {self.iterations} iterations)"
+            f"({self.n_fit} points, {self.iterations} iterations, regularization "
+            f"{self.regularization:.3g})"
         )
 
 
@@ -144,51 +152,13 @@ def _wrap(d: np.ndarray) -> np.ndarray:
     return (d + 180.0) % 360.0 - 180.0
 
 
-def _solve_ratio(
-    terms: np.ndarray, y: np.ndarray, regularization: float, max_iterations: int, tol: float
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Numerator (20,) and denominator (20, constant 1) of ``y ~ N(T) / D(T)``."""
-    n = terms.shape[0]
-    design = np.concatenate([terms, -y[:, None] * terms[:, 1:]], axis=1)  # (n, 39)
-    norms = np.linalg.norm(design, axis=0)
-    norms[norms == 0] = 1.0
-    scaled = design / norms
-    lam = float(regularization)
-    den = np.ones(n)
-    previous = None
-    iterations = 0
-    for iterations in range(1, max_iterations + 1):  # noqa: B007 (returned after the loop)
-        w = 1.0 / den
-        a = scaled * w[:, None]
-        b = y * w
-        if lam > 0:
-            a = np.concatenate([a, np.sqrt(lam) * np.eye(a.shape[1])])
-            b = np.concatenate([b, np.zeros(a.shape[1])])
-        x, *_ = np.linalg.lstsq(a, b, rcond=None)
-        x = x / norms
-        num = x[:20]
-        dcoef = np.concatenate([[1.0], x[20:]])
-        den = terms @ dcoef
-        if np.any(den <= 0) or not np.all(np.isfinite(den)):
-            raise AdjustmentError(
-                "fit_rpc: the fitted denominator vanishes inside the grid; increase "
-                "regularization or check the model"
-            )
-        fitted = (terms @ num) / den
-        rms = float(np.sqrt(np.mean((fitted - y) ** 2)))
-        if previous is not None and abs(previous - rms) <= tol * max(rms, 1e-300) + 1e-16:
-            break
-        previous = rms
-    return num, dcoef, iterations
-
-
 def fit_rpc(
     model: SensorModel,
     shape: tuple[int, int] | None = None,
     height_range: tuple[float, float] | None = None,
     grid: tuple[int, int, int] = (21, 21, 9),
     *,
-    regularization: float = 0.0,
+    regularization: float | str = "gcv",
     max_iterations: int = 10,
     tolerance: float = 1e-6,
     template: Rpc00b | None = None,
@@ -207,10 +177,13 @@ def fit_rpc(
     grid : (int, int, int)
         Fit-grid nodes along rows, columns and heights (each >= 2; 21 x 21 x 9 = 3969 points
         for 78 unknowns by default). The check grid has ``2 (n - 1)`` nodes per axis.
-    regularization : float
-        Tikhonov weight on the column-scaled unknowns (dimensionless; 0 disables it, values
-        around 1e-10..1e-6 stabilise the ill-conditioned cases where a full cubic ratio is
-        over-parameterised).
+    regularization : float or ``"gcv"``
+        Tikhonov weight on the column-scaled unknowns (dimensionless; 0 disables it), or
+        ``"gcv"`` (default) to choose it at each reweighting iteration by generalised
+        cross-validation (:mod:`geoblock_rpc.rational`). Either way a weight that
+        lets a denominator approach zero on the fit or check grid is replaced by the next
+        larger one, so the full cubic ratio, over-parameterised for most sensors, never gets a
+        pole inside the image.
     max_iterations : int
         Cap on the ``1 / D`` reweighting iterations.
     tolerance : float
@@ -231,7 +204,10 @@ def fit_rpc(
     Raises
     ------
     AdjustmentError
-        The model cannot backproject most of the grid, or the fitted denominator vanishes.
+        The model cannot backproject most of the grid.
+    SingularSystemError
+        (an ``AdjustmentError``) No regularisation keeps the fitted denominators away from
+        zero.
 
     Examples
     --------
@@ -244,6 +220,7 @@ def fit_rpc(
     hr = tuple(float(v) for v in (model.height_range if height_range is None else height_range))
     grid = tuple(int(n) for n in grid)
     lon, lat, h, row, col = _ground(model, *image_grid(shape, hr, grid), what="fit-grid")
+    check_points = _ground(model, *check_grid(shape, hr, grid), what="check-grid")
 
     lon0 = float(np.median(lon))
     dlon = _wrap(lon - lon0)
@@ -263,10 +240,12 @@ def fit_rpc(
         )
 
     terms = normalised(lon, lat, h)
-    y_row = (row - line_off) / line_scale
-    y_col = (col - samp_off) / samp_scale
-    line_num, line_den, it_r = _solve_ratio(terms, y_row, regularization, max_iterations, tolerance)
-    samp_num, samp_den, it_c = _solve_ratio(terms, y_col, regularization, max_iterations, tolerance)
+    y = np.stack([(row - line_off) / line_scale, (col - samp_off) / samp_scale], axis=1)
+    ratio = solve_ratios(terms, y, order=3, regularization=regularization,
+                         guard=normalised(*check_points[:3]), max_iterations=max_iterations,
+                         tolerance=tolerance)
+    line_num, samp_num = ratio.numerators
+    line_den, samp_den = ratio.denominators
 
     extra: dict[str, Any] = {}
     if template is not None:
@@ -289,7 +268,7 @@ def fit_rpc(
     fr, fc = errors(lon, lat, h, row, col)
     fit_err = np.hypot(fr, fc)
     check = tuple(2 * (n - 1) for n in grid)
-    cr, cc = errors(*_ground(model, *check_grid(shape, hr, grid), what="check-grid"))
+    cr, cc = errors(*check_points)
     err = np.hypot(cr, cc)
     stats = FitStats(
         rms_px=float(np.sqrt(np.mean(err**2))),
@@ -300,7 +279,9 @@ def fit_rpc(
         fit_max_px=float(fit_err.max()),
         n_fit=int(lon.size),
         n_check=int(cr.size),
-        iterations=max(it_r, it_c),
+        iterations=ratio.iterations,
+        regularization=ratio.regularization,
+        condition=ratio.condition,
         grid=grid,  # type: ignore[arg-type]
         check=check,  # type: ignore[arg-type]
     )

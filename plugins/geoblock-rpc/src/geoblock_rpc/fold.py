@@ -151,7 +151,7 @@ def fold_correction(
     corrected: ImageCorrection,
     *,
     grid: tuple[int, int, int] = (21, 21, 9),
-    regularization: float = 0.0,
+    regularization: float | str = "gcv",
 ) -> tuple[Rpc00b, FoldReport]:
     """RPC00B coefficients of an image-corrected RPC: exact when possible, else a refit.
 
