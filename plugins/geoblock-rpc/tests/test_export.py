@@ -199,6 +199,17 @@ def _north_up(bounds, width: int, height: int) -> Affine:
     return Affine((east - west) / width, 0.0, west, 0.0, -(north - south) / height, north)
 
 
+def _constant_dem(path: Path, bounds, h: float) -> Path:
+    """A 20 x 20 lon/lat DEM of constant height ``h`` a little wider than ``bounds``."""
+    west, south, east, north = bounds
+    with rasterio.open(path, "w", driver="GTiff", height=20, width=20, count=1, dtype="float64",
+                       crs="EPSG:4326",
+                       transform=_north_up((west - 0.01, south - 0.01, east + 0.01,
+                                            north + 0.01), 20, 20)) as ds:
+        ds.write(np.full((1, 20, 20), h))
+    return path
+
+
 def _warp_rasterio(src: Path, dst_shape, bounds, h: float, folder: Path) -> np.ndarray:
     """GDAL's warper through rasterio (``GDALWarp`` with ``-r bilinear -to SRC_METHOD=RPC``).
 
@@ -207,12 +218,7 @@ def _warp_rasterio(src: Path, dst_shape, bounds, h: float, folder: Path) -> np.n
     exact)."""
     h_, w_ = dst_shape
     west, south, east, north = bounds
-    dem = folder / "dem.tif"
-    with rasterio.open(dem, "w", driver="GTiff", height=20, width=20, count=1, dtype="float64",
-                       crs="EPSG:4326",
-                       transform=_north_up((west - 0.01, south - 0.01, east + 0.01,
-                                            north + 0.01), 20, 20)) as ds:
-        ds.write(np.full((1, 20, 20), h))
+    dem = _constant_dem(folder / "dem.tif", bounds, h)
     out = np.full((2, h_, w_), np.nan)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NotGeoreferencedWarning)
@@ -230,12 +236,7 @@ def _warp_gdalwarp(src: Path, dst_shape, bounds, h: float, folder: Path) -> np.n
     h_, w_ = dst_shape
     west, south, east, north = bounds
     out = folder / "warped.tif"
-    dem = folder / "dem.tif"
-    with rasterio.open(dem, "w", driver="GTiff", height=20, width=20, count=1, dtype="float64",
-                       crs="EPSG:4326",
-                       transform=_north_up((west - 0.01, south - 0.01, east + 0.01,
-                                            north + 0.01), 20, 20)) as ds:
-        ds.write(np.full((1, 20, 20), h))
+    dem = _constant_dem(folder / "dem.tif", bounds, h)
     subprocess.run([exe, "-q", "-rpc", "-to", f"RPC_DEM={dem}", "-et", "0", "-r", "bilinear",
                     "-t_srs", "EPSG:4326", "-te", repr(west), repr(south), repr(east), repr(north),
                     "-ts", str(w_), str(h_), "-ot", "Float64", "-dstnodata", "nan",
