@@ -229,6 +229,22 @@ class RfmModel(SensorModelBase):
         self._height_range = (n["height_off"] - abs(n["height_scale"]),
                               n["height_off"] + abs(n["height_scale"]))
 
+    @classmethod
+    def example(cls) -> Self:
+        """An RFM-1 fitted (UTM frame) to 40 error-free GCPs of the synthetic pushbroom
+        (``geoblock.testing.synthetic.ConstantVelocityPushbroom.example()``)."""
+        from geoblock.adjust import ControlPoints
+        from geoblock.testing.synthetic import ConstantVelocityPushbroom
+
+        truth = ConstantVelocityPushbroom.example()
+        rng = np.random.default_rng(15)
+        rows, cols = truth.shape
+        row, col = rng.uniform(-0.5, rows - 0.5, 40), rng.uniform(-0.5, cols - 0.5, 40)
+        h = rng.uniform(*truth.height_range, 40)
+        g = truth.backproject(row, col, h)
+        gcps = ControlPoints([f"G{i}" for i in range(40)], g.lon, g.lat, h, row, col)
+        return fit_rfm(gcps, order=1, shape=truth.shape)  # type: ignore[return-value]
+
     # ------------------------------------------------------------------ state
     @property
     def order(self) -> int:
