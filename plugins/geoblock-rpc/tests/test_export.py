@@ -21,7 +21,7 @@ import rasterio
 from affine import Affine
 from click.testing import CliRunner
 from geoblock_rpc import RpcModel
-from geoblock_rpc.plugin import MAX_FIT_ERROR_PX, RpcExportWarning
+from geoblock_rpc.export import MAX_FIT_ERROR_PX, RpcExportWarning
 from rasterio.enums import Resampling
 from rasterio.errors import NotGeoreferencedWarning
 from rasterio.transform import RPCTransformer

@@ -63,6 +63,30 @@ class PointResiduals:
         """RMSE of the row and column residuals, pixels."""
         return (float(np.sqrt(np.nanmean(self.row**2))), float(np.sqrt(np.nanmean(self.col**2))))
 
+    @property
+    def rms_px(self) -> float:
+        """RMS of the 2D image residual ``hypot(row, col)``, pixels."""
+        return float(np.sqrt(np.nanmean(self.row**2 + self.col**2)))
+
+    @property
+    def max_px(self) -> float:
+        """Largest 2D image residual, pixels."""
+        return float(np.nanmax(np.hypot(self.row, self.col)))
+
+    @classmethod
+    def of(cls, model: SensorModel, points: ControlPoints,
+           v: Float64Array | None = None) -> PointResiduals:
+        """Residuals of ``points`` through ``model``: image residuals (observed - computed,
+        or the given ``v`` (N, 2)) and ground errors (located at each point's height -
+        reference)."""
+        if v is None:
+            (r, c), _ = model.project_with_status(points.lon, points.lat, points.h)
+            v = np.stack([points.row - r, points.col - c], axis=-1)
+        (lon, lat, h), _ = model.backproject_with_status(points.row, points.col, points.h)
+        de, dn, _ = coords.enu_offsets(points.lon, points.lat, points.h, lon, lat, h)
+        return cls(id=points.id, row=v[:, 0], col=v[:, 1], e=de, n=dn,
+                   stats=AccuracyStats.from_errors(de, dn))
+
 
 @dataclass(frozen=True)
 class ResectionResult:
@@ -251,8 +275,8 @@ def resect(
         converged=converged,
         iterations=len(history),
         history=history,
-        gcp=_residuals(current, gcps, v),
-        icp=None if icps is None else _residuals(current, icps, None),
+        gcp=PointResiduals.of(current, gcps, v),
+        icp=None if icps is None else PointResiduals.of(current, icps, None),
     )
 
 
@@ -325,15 +349,3 @@ def _solve(
     return step_scaled / norms, n_inv_scaled / np.outer(norms, norms)
 
 
-def _residuals(model: SensorModel, points: ControlPoints, v: Float64Array | None
-               ) -> PointResiduals:
-    """Image residuals (observed - computed) and ground errors (located - reference)."""
-    if v is None:
-        (r, c), _ = model.project_with_status(points.lon, points.lat, points.h)
-        v = np.stack([points.row - r, points.col - c], axis=-1)
-    (lon, lat, h), _ = model.backproject_with_status(points.row, points.col, points.h)
-    de, dn, _ = coords.enu_offsets(points.lon, points.lat, points.h, lon, lat, h)
-    return PointResiduals(
-        id=points.id, row=v[:, 0], col=v[:, 1], e=de, n=dn,
-        stats=AccuracyStats.from_errors(de, dn),
-    )

@@ -5,9 +5,9 @@
 ``geoblock export-rpc``: any sensor model as an RPC (``_RPC.TXT``, ``.RPB`` or GeoTIFF tags).
 
 The model goes through :func:`geoblock.write_model`, so the ``geoblock_write_sensor_model``
-hook (:func:`geoblock_rpc.plugin.export_rpc`) decides how: an RPC is written as it is, an
+hook (:func:`geoblock_rpc.export.export_rpc`) decides how: an RPC is written as it is, an
 image-corrected RPC is folded, anything else is fitted. The command prints which happened,
-from the hook's :class:`~geoblock_rpc.plugin.RpcExportWarning`. The output is written in a
+from the hook's :class:`~geoblock_rpc.export.RpcExportWarning`. The output is written in a
 staging folder and moved into place only when complete (:func:`geoblock.io.files.staged_files`).
 """
 
@@ -54,7 +54,9 @@ def _image_copy(image: Path, staged: Path, shape: tuple[int, int]) -> None:
     if size != tuple(shape):
         raise CropError(
             f"--image {image} is {size[0]} x {size[1]} pixels but the model's image is "
-            f"{shape[0]} x {shape[1]}: the RPC would not fit its pixels"
+            f"{shape[0]} x {shape[1]}: the RPC would not fit its pixels (for a crop, give the "
+            "cropped raster itself as MODEL, or its model JSON, so that the crop's offset is "
+            "known)"
         )
     if driver == "GTiff":
         shutil.copyfile(image, staged)
@@ -142,8 +144,8 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
     """
     from geoblock.errors import GeoblockError
     from geoblock.io import files, write_model
+    from geoblock_rpc.export import RpcExportWarning
     from geoblock_rpc.model import RpcModel
-    from geoblock_rpc.plugin import RpcExportWarning
 
     final = Path(out_path)
     if fmt is None:
@@ -201,7 +203,7 @@ def _control(ground_path: str, image_path: str, image_id: str | None, sigma_px: 
 
     image_cols = read_points(image_path, required=("row", "col"))
     if "image" not in image_cols:  # a one-image file needs no image column
-        image_cols["image"] = np.full(len(image_cols["id"]), "image")
+        image_cols["image"] = np.full(len(image_cols["id"]), Path(image_path).name)
     try:
         ground = GroundPoints.from_columns(read_points(ground_path, required=("lon", "lat", "h")),
                                            source=ground_path)

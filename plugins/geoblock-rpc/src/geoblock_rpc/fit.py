@@ -28,7 +28,7 @@ from geoblock.errors import AdjustmentError, GeoblockWarning
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
 from geoblock_rpc.rational import solve_ratios
-from geoblock_rpc.rpc00b import Rpc00b, evaluate_terms
+from geoblock_rpc.rpc00b import Rpc00b, evaluate_terms, wrap_longitude
 
 __all__ = ["FitStats", "check_grid", "fit_rpc", "image_grid"]
 
@@ -148,10 +148,6 @@ def _ground(model: SensorModel, row, col, h, what: str):
     return lon[ok], lat[ok], np.asarray(h, float)[ok], np.asarray(row)[ok], np.asarray(col)[ok]
 
 
-def _wrap(d: np.ndarray) -> np.ndarray:
-    return (d + 180.0) % 360.0 - 180.0
-
-
 def fit_rpc(
     model: SensorModel,
     shape: tuple[int, int] | None = None,
@@ -223,7 +219,7 @@ def fit_rpc(
     check_points = _ground(model, *check_grid(shape, hr, grid), what="check-grid")
 
     lon0 = float(np.median(lon))
-    dlon = _wrap(lon - lon0)
+    dlon = wrap_longitude(lon - lon0)
     long_off = lon0 + 0.5 * (dlon.max() + dlon.min())
     long_scale = max(0.5 * (dlon.max() - dlon.min()), 1e-12)
     lat_off = 0.5 * (lat.max() + lat.min())
@@ -235,7 +231,7 @@ def fit_rpc(
 
     def normalised(lon, lat, h):
         return evaluate_terms(
-            _wrap(lon - long_off) / long_scale, (lat - lat_off) / lat_scale,
+            wrap_longitude(lon - long_off) / long_scale, (lat - lat_off) / lat_scale,
             (h - height_off) / height_scale,
         )
 

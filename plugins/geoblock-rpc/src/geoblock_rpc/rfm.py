@@ -50,10 +50,10 @@ from geoblock.errors import (
 from geoblock.models import image_shape
 from geoblock.typing import ArrayLike, Status
 from geoblock_rpc.rational import TERM_COUNTS, RatioFit, solve_ratios
-from geoblock_rpc.rpc00b import Rpc00b, evaluate_terms
+from geoblock_rpc.rpc00b import Rpc00b, evaluate_terms, wrap_longitude
 
 if TYPE_CHECKING:  # geoblock.adjust is imported when a fit runs, not when the plugin loads
-    from geoblock.adjust import AccuracyStats, ControlPoints
+    from geoblock.adjust import AccuracyStats, ControlPoints, PointResiduals
 
 __all__ = ["K_FOLDS", "LOO_MAX_POINTS", "RfmFit", "RfmModel", "fit_rfm", "minimum_gcps"]
 
@@ -81,25 +81,6 @@ def minimum_gcps(order: int, common_denominator: bool = False) -> int:
 
 
 @dataclass(frozen=True)
-class PointResidualsPx:
-    """Image residuals of a point set, ``fitted model - measured``, pixels."""
-
-    id: np.ndarray
-    row: np.ndarray
-    col: np.ndarray
-
-    @property
-    def rms_px(self) -> float:
-        """RMS of the 2D residual ``hypot(row, col)``, pixels."""
-        return float(np.sqrt(np.mean(self.row**2 + self.col**2))) if self.row.size else math.nan
-
-    @property
-    def max_px(self) -> float:
-        """Largest 2D residual, pixels."""
-        return float(np.max(np.hypot(self.row, self.col))) if self.row.size else math.nan
-
-
-@dataclass(frozen=True)
 class RfmFit:
     """How an RFM was fitted, and how well it fits.
 
@@ -114,12 +95,10 @@ class RfmFit:
         Condition number of the column-scaled design (largest over the image coordinates).
     regularization : float
         Tikhonov weight chosen by generalised cross-validation (on the unit-norm columns).
-    gcp : PointResidualsPx
-        GCP residuals, pixels.
-    gcp_ground : AccuracyStats
-        GCP errors on the ground (measured image point localised at the GCP's height minus the
-        surveyed point), metres east/north.
-    icp, icp_ground : PointResidualsPx, AccuracyStats or None
+    gcp : geoblock.adjust.PointResiduals
+        GCP image residuals (observed - computed, pixels) and ground errors (the measured
+        image point localised at the GCP's height minus the surveyed point, metres east/north).
+    icp : geoblock.adjust.PointResiduals or None
         The same at independent check points, when given.
     cv_rms_px : dict of int to float
         Cross-validated 2D image RMS per order tried (``order="auto"``; empty otherwise).
@@ -132,12 +111,20 @@ class RfmFit:
     n_gcp: int
     condition: float
     regularization: float
-    gcp: PointResidualsPx
-    gcp_ground: AccuracyStats
-    icp: PointResidualsPx | None = None
-    icp_ground: AccuracyStats | None = None
+    gcp: PointResiduals
+    icp: PointResiduals | None = None
     cv_rms_px: dict[int, float] = field(default_factory=dict)
     cv: str = ""
+
+    @property
+    def gcp_ground(self) -> AccuracyStats:
+        """GCP errors on the ground (``gcp.stats``), metres."""
+        return self.gcp.stats
+
+    @property
+    def icp_ground(self) -> AccuracyStats | None:
+        """ICP errors on the ground (``icp.stats``), metres; None without ICPs."""
+        return None if self.icp is None else self.icp.stats
 
     def summary(self) -> str:
         """A few lines for people: order, control, conditioning and accuracy."""
@@ -147,10 +134,10 @@ class RfmFit:
         if self.cv_rms_px:
             lines.append(f"{self.cv} cross-validation, 2D image RMS: " + ", ".join(
                 f"RFM-{k} {v:.3g} px" for k, v in sorted(self.cv_rms_px.items())))
-        for label, px, g in (("GCP", self.gcp, self.gcp_ground), ("ICP", self.icp,
-                                                                  self.icp_ground)):
-            if px is None or g is None:
+        for label, px in (("GCP", self.gcp), ("ICP", self.icp)):
+            if px is None:
                 continue
+            g = px.stats
             lines.append(f"{label} {g.n:3d}: image RMS {px.rms_px:.3g} px (max {px.max_px:.3g})"
                          f"; ground RMSE E {g.rmse_e:.3f} N {g.rmse_n:.3f} 2D {g.rmse_2d:.3f} m")
         return "\n".join(lines)
@@ -335,12 +322,7 @@ class RfmModel(SensorModelBase):
     # ------------------------------------------------------------------ directions
     def _frame_xy(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Normalised ground-frame coordinates of (lon, lat) degrees."""
-        n = self._norm
-        if self._crs is None:
-            return _wrap(lon - n["x_off"]) / n["x_scale"], (lat - n["y_off"]) / n["y_scale"]
-        x, y = coords.transformer(4326, self._crs).transform(lon, lat)
-        return (np.asarray(x) - n["x_off"]) / n["x_scale"], (np.asarray(y) - n["y_off"]) / \
-            n["y_scale"]
+        return _normalised_xy(self._crs, self._norm, lon, lat)
 
     def ground_to_image(self, lon, lat, h):
         """Closed form: ``off + scale * N(T) / D(T)`` per image coordinate."""
@@ -394,7 +376,7 @@ class _Normalisation:
 
         if crs is None:
             lon0 = float(np.median(p.lon))
-            x_c, x_s = centre_half(_wrap(p.lon - lon0), 1e-7)
+            x_c, x_s = centre_half(wrap_longitude(p.lon - lon0), 1e-7)
             x_c += lon0
             y_c, y_s = centre_half(p.lat, 1e-7)
         else:
@@ -410,13 +392,8 @@ class _Normalisation:
     def xyz(self, p: ControlPoints) -> np.ndarray:
         """Normalised ground-frame coordinates (n, 3) of the points."""
         v = self.values
-        if self.crs is None:
-            x, y = _wrap(p.lon - v["x_off"]), p.lat - v["y_off"]
-        else:
-            e, n = coords.transformer(4326, self.crs).transform(p.lon, p.lat)
-            x, y = np.asarray(e) - v["x_off"], np.asarray(n) - v["y_off"]
-        return np.stack([x / v["x_scale"], y / v["y_scale"],
-                         (p.h - v["height_off"]) / v["height_scale"]], axis=1)
+        x, y = _normalised_xy(self.crs, v, p.lon, p.lat)
+        return np.stack([x, y, (p.h - v["height_off"]) / v["height_scale"]], axis=1)
 
     def image(self, p: ControlPoints) -> np.ndarray:
         v = self.values
@@ -424,8 +401,16 @@ class _Normalisation:
                          (p.col - v["samp_off"]) / v["samp_scale"]], axis=1)
 
 
-def _wrap(d: np.ndarray) -> np.ndarray:
-    return (d + 180.0) % 360.0 - 180.0
+def _normalised_xy(crs: pyproj.CRS | None, norm: Mapping[str, float], lon: np.ndarray,
+                   lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised ground-frame ``x, y`` of (lon, lat) degrees: longitude differences wrapped
+    to +/-180 in lon/lat, else easting/northing in the projected ``crs``."""
+    if crs is None:
+        x, y = wrap_longitude(lon - norm["x_off"]), lat - norm["y_off"]
+    else:
+        e, n = coords.transformer(4326, crs).transform(lon, lat)
+        x, y = np.asarray(e) - norm["x_off"], np.asarray(n) - norm["y_off"]
+    return x / norm["x_scale"], y / norm["y_scale"]
 
 
 def _spread(points: np.ndarray) -> np.ndarray:
@@ -435,8 +420,8 @@ def _spread(points: np.ndarray) -> np.ndarray:
     return s / s[0] if s[0] > 0 else np.zeros_like(s)
 
 
-def _check_geometry(gcps: ControlPoints, order: int, common: bool) -> None:
-    """Refuse control that cannot determine the RFM, naming the cause."""
+def _check_count(gcps: ControlPoints, order: int, common: bool) -> None:
+    """Refuse fewer distinct GCPs than an order-``order`` RFM needs, stating the minimum."""
     n = len(gcps.id)
     need = minimum_gcps(order, common)
     den = "a common denominator" if common else "separate denominators"
@@ -449,6 +434,11 @@ def _check_geometry(gcps: ControlPoints, order: int, common: bool) -> None:
             f"an order-{order} RFM ({den}) needs at least {need} GCPs, got {distinct} "
             f"distinct ones{repeated}; use a lower order (RFM-1 needs 7) or more GCPs"
         )
+
+
+def _check_spread(gcps: ControlPoints) -> None:
+    """Refuse GCPs on a line or a plane (in metres), warn when nearly coplanar."""
+    n = len(gcps.id)
     # judged in metres (local east, north, up), where "flat" has a meaning
     lon0, lat0 = float(np.median(gcps.lon)), float(np.median(gcps.lat))
     e, nn, u = coords.enu_offsets(np.full(n, lon0), np.full(n, lat0), np.zeros(n), gcps.lon,
@@ -506,17 +496,6 @@ def _model(ratio: RatioFit, norm: _Normalisation, order: int, common: bool,
     return RfmModel(order, ratio.numerators, ratio.denominators, v, shape,
                     crs=None if norm.crs is None else _crs_text(norm.crs),
                     common_denominator=common, **kwargs)
-
-
-def _residuals(model: RfmModel, points: ControlPoints) -> tuple[PointResidualsPx, AccuracyStats]:
-    from geoblock.adjust import AccuracyStats, ground_errors
-
-    row, col = model.project(points.lon, points.lat, points.h)
-    lon, lat, _ = model.backproject(points.row, points.col, points.h)
-    de, dn, _ = ground_errors(lon, lat, points.lon, points.lat, h=points.h)
-    return (PointResidualsPx(points.id, np.asarray(row) - points.row,
-                             np.asarray(col) - points.col),
-            AccuracyStats.from_errors(de, dn))
 
 
 def _folds(n: int) -> tuple[str, list[np.ndarray]]:
@@ -618,7 +597,7 @@ def fit_rfm(
     >>> rfm.order, rfm.fit.gcp.rms_px < 0.1
     (1, True)
     """
-    from geoblock.adjust import ControlPoints
+    from geoblock.adjust import ControlPoints, PointResiduals
 
     if not isinstance(gcps, ControlPoints):
         raise TypeError(f"fit_rfm needs geoblock.adjust.ControlPoints, got {type(gcps).__name__}")
@@ -634,8 +613,8 @@ def fit_rfm(
                 f"{minimum_gcps(1, common_denominator) + 1} GCPs (one more than RFM-1's "
                 f"minimum), got {n}"
             )
+        _check_spread(gcps)
         for k in candidates:
-            _check_geometry(gcps, k, common_denominator)
             how, cv[k] = _cv_rms(gcps, k, common_denominator, frame, regularization)
         finite = {k: v for k, v in cv.items() if math.isfinite(v)}
         if not finite:
@@ -646,7 +625,9 @@ def fit_rfm(
         raise ValueError(f"order must be 1, 2, 3 or 'auto', got {order!r}")
     k_order = int(order)
     norm = _Normalisation.of(gcps, frame)
-    _check_geometry(gcps, k_order, common_denominator)
+    _check_count(gcps, k_order, common_denominator)
+    if not cv:  # order="auto" checked the spread already
+        _check_spread(gcps)
     ratio = _ratio(gcps, norm, k_order, common_denominator, regularization)
     probe = _model(ratio, norm, k_order, common_denominator, shape, domain_limit=1e3,
                    height_limit=1e3)
@@ -659,14 +640,13 @@ def fit_rfm(
     x, y = probe._frame_xy(lon, lat)
     reach = np.nanmax(np.abs(np.concatenate([x, y]))) if np.isfinite(x).any() else np.nan
     domain = max(1.5, 1.2 * float(reach)) if np.isfinite(reach) else 1.5
-    model = _model(ratio, norm, k_order, common_denominator, probe.shape, domain_limit=domain)
-    gcp_px, gcp_ground = _residuals(model, gcps)
-    icp_px, icp_ground = _residuals(model, icps) if icps is not None and len(icps.id) else (
-        None, None)
+    # diagnostics through the probe: its wider domain reports ICPs beyond the image too
+    gcp_px = PointResiduals.of(probe, gcps)
+    icp_px = PointResiduals.of(probe, icps) if icps is not None and len(icps.id) else None
     diagnostics = RfmFit(
         order=k_order, common_denominator=common_denominator, n_gcp=len(gcps.id),
         condition=ratio.condition, regularization=ratio.regularization, gcp=gcp_px,
-        gcp_ground=gcp_ground, icp=icp_px, icp_ground=icp_ground, cv_rms_px=cv, cv=how,
+        icp=icp_px, cv_rms_px=cv, cv=how,
     )
     return _model(ratio, norm, k_order, common_denominator, probe.shape, domain_limit=domain,
                   fit=diagnostics)

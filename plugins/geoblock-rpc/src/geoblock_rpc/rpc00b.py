@@ -24,7 +24,7 @@ import numpy as np
 
 from geoblock.errors import ModelFormatError
 
-__all__ = ["GDAL_KEYS", "LIMITS", "TERMS", "Rpc00b", "evaluate_terms"]
+__all__ = ["GDAL_KEYS", "LIMITS", "TERMS", "Rpc00b", "evaluate_terms", "wrap_longitude"]
 
 #: RPC00B term order (GDAL, NITF RPC00B, DigitalGlobe RPB, DIMAP v2 all use it)
 TERMS: tuple[str, ...] = (
@@ -352,6 +352,11 @@ def _number(value: Any, key: str, source: str) -> float:
         return float(text[0])
     except (IndexError, ValueError):
         raise ModelFormatError(f"{source}: {key} is not a number: {value!r}") from None
+
+
+def wrap_longitude(d: np.ndarray) -> np.ndarray:
+    """Longitude differences (degrees) wrapped to [-180, 180)."""
+    return (d + 180.0) % 360.0 - 180.0
 
 
 def evaluate_terms(l: np.ndarray, p: np.ndarray, h: np.ndarray) -> np.ndarray:  # noqa: E741
