@@ -13,7 +13,9 @@ and resolved to the module it names:
   it re-exports (importing it runs all of them).
 * A module-level ``__getattr__`` forwarding names that moved elsewhere (a deprecation alias:
   ``geoblock.adjust.output`` -> ``geoblock.report.adjustment``) is discounted too: its imports
-  run only when old code asks for an old name.
+  run only when old code asks for an old name. A package ``__init__`` that imports its names
+  on first use (PEP 562: ``geoblock``, ``geoblock.io``, ``geoblock.adjust``...) lists them under
+  ``if TYPE_CHECKING:``; they are re-exports like eager ones.
 
 The layers (docs/explanation/design.md, "Layers"): a module may import from its own layer and
 below, never above.
@@ -45,6 +47,7 @@ LAYERS: dict[str, int] = {
     "geoblock.io._atomic": 1,
     "geoblock.io._progress": 1,
     "geoblock.io.rasters": 1,  # the raster handle cache
+    "geoblock.io.geotiff": 1,  # the GeoTIFF write options (no imports: shown by --help)
     # 2 values and registry: sensor models, DEM sources, observations, the plugin machinery
     "geoblock.hookspecs": 2,
     "geoblock.plugins": 2,
@@ -59,6 +62,7 @@ LAYERS: dict[str, int] = {
     "geoblock.models.crop": 3,  # model_for_image opens the image it is given (io.images)
     # 4 engines
     "geoblock.dem.intersect": 4,  # localize
+    "geoblock.ortho.limits": 0,  # the output-grid limits (no imports: shown by --help)
     "geoblock.ortho": 4,
     "geoblock.adjust": 4,
     # 5 compositions of engines and values
@@ -97,11 +101,26 @@ def _tree(module: str) -> ast.Module:
     return ast.parse(MODULES[module].read_text(encoding="utf-8"), str(MODULES[module]))
 
 
+def _top_level(tree: ast.Module) -> list[ast.stmt]:
+    """A module's top-level statements, those of its ``if TYPE_CHECKING:`` blocks included: a
+    package whose names are imported on first use (PEP 562 ``__getattr__``) lists them there
+    for type checkers."""
+    out: list[ast.stmt] = []
+    for node in tree.body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) \
+                and node.test.id == "TYPE_CHECKING":
+            out += node.body
+        else:
+            out.append(node)
+    return out
+
+
 @cache
 def _reexports(package: str) -> dict[str, tuple[str, str]]:
-    """``name -> (module, name)`` for the ``from ... import`` lines of a package ``__init__``."""
+    """``name -> (module, name)`` for the ``from ... import`` lines of a package ``__init__``
+    (eager, or lazy: listed under ``if TYPE_CHECKING:`` and imported by ``__getattr__``)."""
     out = {}
-    for node in _tree(package).body:
+    for node in _top_level(_tree(package)):
         if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             for alias in node.names:
                 out[alias.asname or alias.name] = (node.module, alias.name)
@@ -298,7 +317,8 @@ def test_core_never_imports_a_plugin():
     [
         ("geoblock.io", "open_model", "geoblock.io.models"),  # through the re-export
         ("geoblock", "coords", "geoblock.coords"),  # a submodule
-        ("geoblock.adjust", "Block", "geoblock.adjust.block"),
+        ("geoblock.adjust", "Block", "geoblock.adjust.block"),  # a lazy re-export
+        ("geoblock.io", "write_ortho", "geoblock.io.images"),
     ],
 )
 def test_imports_resolve_to_the_defining_module(module, name, expected):

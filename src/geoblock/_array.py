@@ -76,6 +76,27 @@ def warn_status(status: NDArray[np.uint8], operation: str, stacklevel: int = 3) 
 
 
 @numba.njit(nogil=True, cache=True)
+def _nb_all_finite(x: Float64Array, y: Float64Array) -> bool:  # pragma: no cover - compiled
+    for k in range(x.size):
+        if not (math.isfinite(x[k]) and math.isfinite(y[k])):
+            return False
+    return True
+
+
+def all_finite(x: Float64Array, y: Float64Array) -> bool:
+    """Whether every value of two same-shape float64 arrays is finite (one compiled pass, no
+    temporaries; stops at the first non-finite value).
+
+    Examples
+    --------
+    >>> all_finite(np.array([1.0, 2.0]), np.array([3.0, np.inf]))
+    False
+    """
+    return bool(_nb_all_finite(np.ascontiguousarray(x, dtype=np.float64).reshape(-1),
+                               np.ascontiguousarray(y, dtype=np.float64).reshape(-1)))
+
+
+@numba.njit(nogil=True, cache=True)
 def _nb_finite_bounds(  # pragma: no cover - compiled
     x: Float64Array, y: Float64Array
 ) -> tuple[float, float, float, float]:

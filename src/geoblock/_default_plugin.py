@@ -9,17 +9,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from geoblock.errors import GeoblockError, ModelFormatError, UnknownModelError
 from geoblock.hookspecs import hookimpl
-from geoblock.models.corrections import ImageCorrection
-from geoblock.models.protocol import SensorModel
+
+if TYPE_CHECKING:
+    from geoblock.models.protocol import SensorModel
 
 
 @hookimpl
 def geoblock_register_sensor_models(register: Callable[[type], None]) -> None:
     from geoblock.adjust.collocation import CollocationCorrection
+    from geoblock.models.corrections import ImageCorrection
     from geoblock.models.crop import CroppedModel
     from geoblock.models.linescan import LinescanModel
 

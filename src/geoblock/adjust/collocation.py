@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Self
 
 import numpy as np
-import scipy.linalg
 
 from geoblock._array import broadcast_float64
 from geoblock.errors import ObservationError, SerializationError, TooFewPointsError
@@ -181,6 +180,8 @@ class Collocation:
 
     def _fit(self) -> tuple[Float64Array, Float64Array, Float64Array]:
         """``mean`` (2,), ``mu`` (2,) and ``weights`` (2, n) of the data (see fit_collocation)."""
+        import scipy.linalg  # here: registering the model (every command) must not load SciPy
+
         shapes = [getattr(self, k).shape for k in ("row", "col", "d_row", "d_col")]
         if len(set(shapes)) != 1 or len(shapes[0]) != 1:
             raise ObservationError(

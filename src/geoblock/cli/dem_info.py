@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from geoblock.dem.protocol import DemSource
-from geoblock.dem.raster import MosaicDem, RasterDem
-from geoblock.io.dem import open_dem
+if TYPE_CHECKING:
+    from geoblock.dem.protocol import DemSource
+    from geoblock.dem.raster import RasterDem
 
 __all__ = ["dem_info", "describe_dem"]
 
@@ -54,6 +54,8 @@ def describe_dem(dem: DemSource) -> dict[str, Any]:
         ``nodata_share`` (0..1), ``file_height_range`` (file datum, metres) and
         ``height_range`` (ellipsoidal, metres). A mosaic gives ``tiles``: one such dict each.
     """
+    from geoblock.dem.raster import MosaicDem, RasterDem
+
     if isinstance(dem, RasterDem):
         return _describe_raster(dem)
     if isinstance(dem, MosaicDem):
@@ -123,6 +125,8 @@ def dem_info(dem_paths: tuple[str, ...], vertical: str | None, geoid: str | None
       geoblock dem-info dem.tif --vertical geoid --json
     """
     source = dem_paths[0] if len(dem_paths) == 1 else list(dem_paths)
+    from geoblock.io.dem import open_dem
+
     dem = open_dem(source, vertical=vertical, geoid=geoid)
     data = describe_dem(dem)
     if as_json:

@@ -7,11 +7,8 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import click
-import numpy as np
 
-from geoblock import coords
 from geoblock.cli.options import json_opt, model_arg, model_name_opt, open_model_arg
-from geoblock.pixels import image_domain
 
 if TYPE_CHECKING:
     from geoblock.models.protocol import SensorModel
@@ -48,6 +45,11 @@ def model_info(model: SensorModel, h: float | None = None) -> dict[str, Any]:
         ``gsd`` (``h``, ``row_m``, ``col_m``, ``mean_m``: metres between neighbouring pixel
         centres at the image centre). Points the model cannot backproject are ``None``.
     """
+    import numpy as np
+
+    from geoblock import coords
+    from geoblock.pixels import image_domain
+
     rows, cols = (int(v) for v in model.shape)
     h_min, h_max = (float(v) for v in model.height_range)
     if h is None:

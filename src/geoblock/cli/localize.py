@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING
 
 import click
 
-from geoblock._array import warn_status
 from geoblock.cli.options import (
     crop_offset_opt,
     model_arg,
@@ -108,6 +107,7 @@ def localize(model_path: str, points: str, dem_source: str, vertical: str | None
       geoblock localize scene.json --dem N44E005.hgt measures.csv -o ground.csv
       printf 'row,col\\n0,0\\n' | geoblock localize scene.json --dem const:100
     """
+    from geoblock._array import warn_status
     from geoblock.cli.project import status_names
     from geoblock.dem.intersect import localize as _localize
     from geoblock.io import open_dem, read_points, write_points

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
+
+from geoblock.cli.options import write_options
 
 __all__ = ["mosaic"]
 
@@ -29,11 +33,13 @@ __all__ = ["mosaic"]
 @click.option("--scheduler", type=click.Choice(["threads", "processes", "synchronous"]),
               default="threads", show_default=True, help="dask scheduler.")
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
+@write_options
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
 def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
            contribution_path: str | None, nodata: float | None, chunks: int, allow_empty: bool,
-           scheduler: str, cog: bool, progress: bool) -> None:
+           scheduler: str, cog: bool, compress: str, level: int | None,
+           creation_options: dict[str, str], progress: bool) -> None:
     """Mosaic the ORTHO GeoTIFFs (in priority order) onto their union grid and write OUT.
 
     The orthos must share CRS, resolution and pixel phase (nothing is reprojected or
@@ -57,13 +63,14 @@ def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
     sources = [open_ortho(path, chunks=chunks) for path in orthos]
     result = make_mosaic(sources, method=method, feather_px=feather_px, nodata=nodata,
                          chunks=chunks)
-    driver = "COG" if cog else "GTiff"
+    write: dict[str, Any] = {
+        "driver": "COG" if cog else "GTiff", "scheduler": scheduler, "progress": progress,
+        "compress": compress, "level": level, **creation_options}
     empty = "warn" if allow_empty else "error"
-    write_ortho(result["mosaic"], output, driver=driver, scheduler=scheduler, progress=progress,
-                empty=empty)
+    write_ortho(result["mosaic"], output, empty=empty, **write)
     if contribution_path is not None:  # all 0 exactly when the mosaic is empty
         write_ortho(result["contribution"].expand_dims(band=[1]), contribution_path,
-                    driver=driver, scheduler=scheduler, progress=progress, empty="ignore")
+                    empty="ignore", **write)
     rows, cols = result.sizes["y"], result.sizes["x"]
     click.echo(f"{output}: {rows} x {cols} px, {result.sizes['band']} band(s) from "
                f"{len(orthos)} orthos ({method})", err=True)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -14,8 +14,9 @@ from geoblock.cli.options import (
     no_crop_opt,
     nonnegative_float,
     positive_float,
+    write_options,
 )
-from geoblock.ortho.grid import MAX_PIXELS
+from geoblock.ortho.limits import MAX_PIXELS
 
 if TYPE_CHECKING:
     import pyproj
@@ -72,6 +73,7 @@ __all__ = ["ortho"]
               help="dask scheduler: local threads, local processes, or the address of a "
               "dask.distributed scheduler (tcp://host:8786).")
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
+@write_options
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
 def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, geoid: str | None,
@@ -79,7 +81,8 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
           crs: pyproj.CRS | None, resolution: float | None,
           bounds: tuple[float, float, float, float] | None,
           resampling: str, tolerance: float, chunks: int, max_pixels: int, allow_empty: bool,
-          scheduler: str, cog: bool, progress: bool) -> None:
+          scheduler: str, cog: bool, compress: str, level: int | None,
+          creation_options: dict[str, str], progress: bool) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
 
     Every output pixel centre goes to the ground, takes its height from DEM (ellipsoidal;
@@ -109,7 +112,7 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     from geoblock.errors import EmptyOutputError
     from geoblock.io import open_dem, open_model
     from geoblock.io.images import open_image, write_ortho
-    from geoblock.ortho import OutputGrid, orthorectify
+    from geoblock.ortho import OutputGrid, ortho_job
 
     model = open_model(model_file if model_file is not None else image)
     source = open_image(image)
@@ -126,20 +129,19 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     names = {"resolution": "--res", "bounds": "--bounds", "max_pixels": "--max-pixels"}
     grid.check(max_pixels=max_pixels, names=names)  # before the graph: 10^20 pixels is no job
     # the model is reconciled with the image already (crop offset applied, or --no-crop)
-    data = orthorectify(source, model, dem, grid, kernel=resampling, tolerance_px=tolerance,
-                        chunks=chunks, crop=False)
-    driver = "COG" if cog else "GTiff"
-    empty = "warn" if allow_empty else "error"
+    data = ortho_job(source, model, dem, grid, kernel=resampling, tolerance_px=tolerance,
+                     chunks=chunks, crop=False)
+    write: dict[str, Any] = {
+        "driver": "COG" if cog else "GTiff", "progress": progress, "compress": compress,
+        "level": level, "empty": "warn" if allow_empty else "error", **creation_options}
     try:
         if scheduler in ("threads", "processes", "synchronous"):
-            write_ortho(data, output, driver=driver, scheduler=scheduler, progress=progress,
-                        empty=empty)
+            write_ortho(data, output, scheduler=scheduler, **write)
         else:
             from distributed import Client
 
             with Client(scheduler) as client:
-                write_ortho(data, output, driver=driver, scheduler=client, progress=progress,
-                            empty=empty)
+                write_ortho(data, output, scheduler=client, **write)
     except EmptyOutputError as exc:
         raise EmptyOutputError(f"{exc}: {_why_empty(model, dem, grid, bool(bounds))}; "
                                "pass --allow-empty to write it anyway") from exc

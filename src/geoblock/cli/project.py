@@ -9,10 +9,10 @@ points are unaffected. Result columns already present in the input are replaced 
 
 from __future__ import annotations
 
-import click
-import numpy as np
+from typing import TYPE_CHECKING
 
-from geoblock._array import warn_status
+import click
+
 from geoblock.cli.options import (
     model_arg,
     model_name_opt,
@@ -21,24 +21,30 @@ from geoblock.cli.options import (
     points_arg,
     points_source,
 )
-from geoblock.typing import Status
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["backproject", "project", "status_names"]
-
-_STATUS_NAMES = np.array([Status(v).name.lower() if v in set(Status) else str(v)
-                          for v in range(max(Status) + 1)])
 
 
 def status_names(status: np.ndarray) -> np.ndarray:
     """Lowercase :class:`Status` names (``"converged"``, ...) for a ``uint8`` status array."""
+    import numpy as np
+
+    from geoblock.typing import Status
+
+    names = np.array([Status(v).name.lower() if v in set(Status) else str(v)
+                      for v in range(max(Status) + 1)])
     status = np.asarray(status, dtype=np.intp)
-    known = _STATUS_NAMES[np.clip(status, 0, _STATUS_NAMES.size - 1)]
-    return np.where(status < _STATUS_NAMES.size, known, status.astype(str))
+    known = names[np.clip(status, 0, names.size - 1)]
+    return np.where(status < names.size, known, status.astype(str))
 
 
 def _run(model_path: str, model_name: str | None, points: str, output: str,
          inputs: tuple[str, str, str], outputs: tuple[str, ...], method: str, what: str,
          ) -> None:
+    from geoblock._array import warn_status
     from geoblock.io import read_points, write_points
 
     model = open_model_arg(model_path, model_name)

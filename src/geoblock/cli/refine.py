@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
-import numpy as np
 
 from geoblock.cli.options import model_arg, model_name_opt, open_model_arg
 
@@ -51,6 +50,8 @@ def _read_control(path: str, sigma_px: float) -> tuple[ControlPoints, dict[str, 
 
 
 def _split_kinds(path: str, sigma_px: float) -> tuple[ControlPoints, ControlPoints | None]:
+    import numpy as np
+
     from geoblock.errors import ObservationError
 
     points, columns = _read_control(path, sigma_px)

@@ -34,7 +34,18 @@ def check_outdir(outdir: str, force: bool) -> Path:
     return path
 
 
-@click.command(short_help="Simulate a block with known truth (preset or scenario TOML).")
+class _PresetsHelp(click.Command):
+    """Fills the ``{presets}`` slot of the help text when help is shown (the presets module
+    is not imported by ``geoblock --help`` or by other commands)."""
+
+    def get_help(self, ctx: click.Context) -> str:
+        if self.help and "{presets}" in self.help:
+            self.help = self.help.replace("{presets}", "\n    ".join(_presets_text().splitlines()))
+        return super().get_help(ctx)
+
+
+@click.command(cls=_PresetsHelp,
+               short_help="Simulate a block with known truth (preset or scenario TOML).")
 @click.argument("scenario", metavar="SCENARIO")
 @click.argument("outdir", metavar="OUTDIR")
 @click.option("--variant", type=click.Choice(["small", "full"]), default=None,
@@ -81,6 +92,3 @@ def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, 
         click.echo(f"Note: {note}", err=True)
     click.echo(f"{result.files['report']}")
 
-
-simulate.help = (simulate.help or "").replace(
-    "{presets}", "\n    ".join(_presets_text().splitlines()))

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from geoblock._array import broadcast_float64
+from geoblock._array import all_finite, broadcast_float64
 from geoblock.typing import ArrayLike, Float64Array, Status
 
 __all__ = ["DemBase"]
@@ -57,7 +57,14 @@ class DemBase(abc.ABC):
 
     def height(self, lon: ArrayLike, lat: ArrayLike) -> Float64Array:
         """(*S,) ellipsoidal heights, metres; NaN where the DEM has none (see
-        :meth:`height_with_status` for why)."""
+        :meth:`height_with_status` for why).
+
+        The engines' path (the orthorectifier samples every output pixel): with finite
+        coordinates, no status array is made; the heights are those of
+        :meth:`height_with_status`, bit for bit."""
+        lon, lat = broadcast_float64(lon=lon, lat=lat, _copy=False)  # only read here
+        if all_finite(lon, lat):
+            return np.asarray(self._heights(lon.reshape(-1), lat.reshape(-1))).reshape(lon.shape)
         return self.height_with_status(lon, lat)[0]
 
     def __eq__(self, other: object) -> bool:

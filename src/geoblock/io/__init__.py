@@ -1,20 +1,30 @@
-"""The one place geoblock opens files: sensor models, DEMs, images, point files and block files."""
+"""The one place geoblock opens files: sensor models, DEMs, images, point files and block files.
 
-from geoblock.io.blocks import (
-    Block,
-    BlockDem,
-    BlockImage,
-    OpenedBlock,
-    open_block,
-    read_block,
-    write_block,
-)
-from geoblock.io.dem import open_dem, write_dem
-from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
-from geoblock.io.metadata import Fields, XmlFields, read_xml
-from geoblock.io.models import open_model, write_model
-from geoblock.io.points import read_points, write_points
-from geoblock.io.rasters import open_quietly
+The names below are imported on first use (PEP 562): the light modules (``geoblock.io.geotiff``,
+``geoblock.io.rasters``...) can be imported without the block files' adjustment engine.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from geoblock.io.blocks import (
+        Block,
+        BlockDem,
+        BlockImage,
+        OpenedBlock,
+        open_block,
+        read_block,
+        write_block,
+    )
+    from geoblock.io.dem import open_dem, write_dem
+    from geoblock.io.images import ImageSource, open_image, write_image, write_ortho
+    from geoblock.io.metadata import Fields, XmlFields, read_xml
+    from geoblock.io.models import open_model, write_model
+    from geoblock.io.points import read_points, write_points
+    from geoblock.io.rasters import open_quietly
 
 __all__ = [
     "Block",
@@ -39,3 +49,40 @@ __all__ = [
     "write_ortho",
     "write_points",
 ]
+
+_LAZY = {
+    "Block": "geoblock.io.blocks",
+    "BlockDem": "geoblock.io.blocks",
+    "BlockImage": "geoblock.io.blocks",
+    "OpenedBlock": "geoblock.io.blocks",
+    "open_block": "geoblock.io.blocks",
+    "read_block": "geoblock.io.blocks",
+    "write_block": "geoblock.io.blocks",
+    "open_dem": "geoblock.io.dem",
+    "write_dem": "geoblock.io.dem",
+    "ImageSource": "geoblock.io.images",
+    "open_image": "geoblock.io.images",
+    "write_image": "geoblock.io.images",
+    "write_ortho": "geoblock.io.images",
+    "Fields": "geoblock.io.metadata",
+    "XmlFields": "geoblock.io.metadata",
+    "read_xml": "geoblock.io.metadata",
+    "open_model": "geoblock.io.models",
+    "write_model": "geoblock.io.models",
+    "read_points": "geoblock.io.points",
+    "write_points": "geoblock.io.points",
+    "open_quietly": "geoblock.io.rasters",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'geoblock.io' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import warnings
 from collections import deque
 from collections.abc import Iterator
@@ -35,6 +36,7 @@ from geoblock.errors import (
 )
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
+from geoblock.io.geotiff import DEFAULT_COMPRESS, compression_options
 from geoblock.io.rasters import (
     dataarray_georeferencing,
     dataarray_grid,
@@ -396,6 +398,8 @@ def pixel_crop_offset(transform: Any, crs: Any = None) -> tuple[float, float] | 
 # ---------------------------------------------------------------------- writing
 def _distributed_client(scheduler: Any) -> Any:
     """The dask.distributed Client to use, or None for a local scheduler."""
+    if (scheduler is None or isinstance(scheduler, str)) and "distributed" not in sys.modules:
+        return None  # no Client can exist (and importing distributed costs 0.3 s)
     try:
         from distributed import Client, default_client
     except ImportError:  # pragma: no cover - distributed is a dependency
@@ -410,8 +414,8 @@ def _distributed_client(scheduler: Any) -> Any:
     return None
 
 
-def _iter_blocks(array: Any, scheduler: Any, in_flight: int,
-                 progress: bool) -> Iterator[tuple[int, int, np.ndarray]]:
+def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool,
+                 in_flight_default: bool = False) -> Iterator[tuple[int, int, np.ndarray]]:
     """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array in row-major chunk order,
     computing up to ``in_flight`` chunks ahead of the one yielded (finished chunks wait for
     their turn: the order of the writes, hence the file's bytes, never depends on which chunk
@@ -426,6 +430,8 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int,
     client = _distributed_client(scheduler)
     try:
         if client is not None:
+            if in_flight_default:  # two chunks per worker thread of the cluster, not of here
+                in_flight = max(in_flight, 2 * sum(client.nthreads().values()))
             def result(fut: Any) -> Any:
                 block = fut.result()
                 fut.release()
@@ -453,11 +459,12 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int,
 
 def _local_threads(scheduler: Any) -> bool:
     """Whether ``scheduler`` means dask's local threaded scheduler (the default for arrays)."""
-    import dask
+    if scheduler is None and "dask" in sys.modules:  # else nothing can have configured one
+        import dask
 
-    if scheduler is None:
         scheduler = dask.config.get("scheduler", None)
-    return scheduler is None or scheduler in ("threads", "threading")
+    return scheduler is None or (isinstance(scheduler, str)
+                                 and scheduler in ("threads", "threading"))
 
 
 def _compute_one(delayed: Any) -> Any:
@@ -491,16 +498,28 @@ def _in_order(items: list[tuple[int, int, Any]], in_flight: int, submit: Any, re
 
 
 def _iter_threads(items: list[tuple[int, int, Any]], in_flight: int,
-                  bar: Any) -> Iterator[tuple[int, int, Any]]:
+                  bar: Any, compute: Any = _compute_one) -> Iterator[tuple[int, int, Any]]:
     """:func:`_iter_blocks` on a thread pool: up to ``in_flight`` chunks computed ahead of the
-    one yielded, yielded in ``items`` order."""
+    one yielded, yielded in ``items`` order (``compute(item)`` makes a chunk's block)."""
     import concurrent.futures as cf
 
     with cf.ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="geoblock") as pool:
-        for r0, c0, block in _in_order(items, in_flight, lambda d: pool.submit(_compute_one, d),
+        for r0, c0, block in _in_order(items, in_flight, lambda d: pool.submit(compute, d),
                                        lambda fut: fut.result(), lambda fut: fut.cancel()):
             bar.update()
             yield r0, c0, block
+
+
+def _iter_job(job: Any, in_flight: int, progress: bool) -> Iterator[tuple[int, int, Any]]:
+    """:func:`_iter_blocks` for an :class:`~geoblock.ortho.graph.OrthoJob` on local threads:
+    its chunks computed by :meth:`~geoblock.ortho.graph.OrthoJob.chunk` on a thread pool, no
+    dask graph (the same function and arguments as the graph's tasks: the same values)."""
+    items = [(w[0], w[2], w) for w in job.windows()]
+    bar = _Progress(len(items), progress)
+    try:
+        yield from _iter_threads(items, in_flight, bar, job.chunk)
+    finally:
+        bar.close()
 
 
 def _has_valid(block: np.ndarray, nodata: float | None) -> bool:
@@ -570,14 +589,14 @@ class _TileRows:
 
 EMPTY = ("error", "warn", "ignore")
 
-
 def write_ortho(
     data: Any,
     path: PathLike,
     *,
     driver: str = "GTiff",
     blocksize: int = 512,
-    compress: str | None = "deflate",
+    compress: str | None = DEFAULT_COMPRESS,
+    level: int | None = None,
     nodata: float | None = None,
     scheduler: Any = None,
     in_flight: int | None = None,
@@ -589,10 +608,13 @@ def write_ortho(
 
     Parameters
     ----------
-    data : xarray.DataArray, (band, y, x)
+    data : xarray.DataArray, (band, y, x), or OrthoJob
         Lazy (dask) or in memory, georeferenced by a ``spatial_ref`` coordinate with
         ``crs_wkt`` and ``GeoTransform`` attributes (as :func:`geoblock.orthorectify` returns
-        and rioxarray writes).
+        and rioxarray writes); or an :class:`~geoblock.ortho.OrthoJob`
+        (:func:`geoblock.ortho.ortho_job`), whose chunks run on a local thread pool without
+        dask when ``scheduler`` is local threads (the same bytes as its DataArray, without
+        dask's and xarray's import and graph costs: what ``geoblock ortho`` does).
     path : str or os.PathLike
         Destination. Written under a temporary name (``.NAME.<random>.tmp`` in the same
         directory) and renamed to ``path`` (``os.replace``) only on success.
@@ -602,14 +624,22 @@ def write_ortho(
     blocksize : int
         Tile side, pixels (a multiple of 16).
     compress : str or None
-        GDAL compression (``"deflate"``, ``"lzw"``, ``"zstd"``, None).
+        GDAL compression, one of :data:`COMPRESSIONS` (``"zstd"``, ``"deflate"``, ``"lzw"``,
+        ...; None or ``"none"``: uncompressed, as gdalwarp writes by default). Default
+        ZSTD, at level 1 (:data:`geoblock.io.geotiff.DEFAULT_COMPRESS` gives the
+        measurement behind it).
+    level : int, optional
+        Compression level (ZSTD 1-22, DEFLATE 1-9); default the fastest,
+        not GDAL's (ZSTD 9, DEFLATE 6): :data:`geoblock.io.geotiff.FAST_LEVEL`.
     nodata : float, optional
         Nodata value written in the file; default ``data.attrs["_FillValue"]`` if present.
     scheduler : str, dask.distributed.Client or None
         ``"threads"``, ``"processes"``, ``"synchronous"``, a Client, or None (the default
         client if one exists, else dask's default scheduler).
     in_flight : int, optional
-        Chunks computed ahead of the writer (bounds memory); default 2 per core.
+        Chunks computed ahead of the writer (bounds memory); default 2 per core, or with a
+        ``dask.distributed`` Client 2 per worker thread of its cluster (else most workers
+        of a cluster of N machines would wait).
     progress : bool
         Show a progress bar on standard error (a tqdm bar on a terminal; elsewhere only a
         final summary line, no carriage-return frames).
@@ -621,7 +651,11 @@ def write_ortho(
         (:class:`~geoblock.errors.EmptyOutputWarning`); ``"ignore"`` writes it silently.
         Without a nodata value every pixel of an integer array is valid.
     **creation_options
-        More GDAL creation options.
+        More GDAL creation options (``gdal_translate -co`` / ``gdalwarp -co``), keys in any
+        case: ``PREDICTOR=2``, ``NUM_THREADS=ALL_CPUS``, ``BIGTIFF=YES``, ``BLOCKXSIZE``...
+        They win over ``compress``, ``level`` and ``blocksize``. With ``driver="COG"`` they
+        go to GDAL's COG driver (``OVERVIEWS``, ``RESAMPLING``, ``LEVEL``...), and the
+        intermediate tiled GeoTIFF is written uncompressed.
 
     Returns
     -------
@@ -645,7 +679,7 @@ def write_ortho(
         # is renamed to ``path`` on success, removed on any failure
         with atomic_path(path) as tmp:
             _write_ortho(data, path, tmp, driver=driver, blocksize=blocksize,
-                         compress=compress, nodata=nodata, scheduler=scheduler,
+                         compress=compress, level=level, nodata=nodata, scheduler=scheduler,
                          in_flight=in_flight, progress=progress, empty=empty,
                          creation_options=creation_options)
     except GeoblockIOError as exc:
@@ -656,17 +690,31 @@ def write_ortho(
     return path
 
 
-def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: int,
-                 compress: str | None, nodata: float | None, scheduler: Any,
-                 in_flight: int | None, progress: bool, empty: str,
-                 creation_options: dict[str, Any]) -> None:
-    """:func:`write_ortho`'s work: the file written to ``tmp`` (the COG through a second
-    temporary GeoTIFF beside it)."""
-    import dask.array as da
-    import rasterio
-    import rasterio.shutil
+def _is_job(data: Any) -> bool:
+    """Whether ``data`` is a planned job (:class:`geoblock.ortho.OrthoJob`: chunks it computes
+    itself, ``windows()``/``chunk(window)``, and its dask form, ``to_dataarray()``) rather than
+    a DataArray. Duck-typed: the openers' layer does not import the engines'."""
+    return all(callable(getattr(data, name, None)) for name in
+               ("windows", "chunk", "to_dataarray")) and hasattr(data, "grid")
 
-    from geoblock.io._atomic import _temporary_for
+
+def _int_option(value: Any, key: str) -> int:
+    """A creation option that must be a positive integer (a tile side)."""
+    try:
+        number = int(value)
+    except (TypeError, ValueError):
+        number = 0
+    if number <= 0 or number % 16:
+        raise ValueError(f"write_ortho: {key.upper()} must be a positive multiple of 16, got "
+                         f"{value!r}")
+    return number
+
+
+def _dask_blocks(data: Any, nodata: float | None, scheduler: Any, in_flight: int,
+                 progress: bool, in_flight_default: bool) -> tuple[Any, ...]:
+    """Georeferencing, nodata, dtype, shape and the block iterator of a ``(band, y, x)``
+    DataArray (computed through dask)."""
+    import dask.array as da
 
     if tuple(data.dims) != ("band", "y", "x"):
         raise ValueError(f"write_ortho: dims must be ('band', 'y', 'x'), got {data.dims}")
@@ -678,10 +726,41 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
         array = da.from_array(np.asarray(array), chunks=(-1, 1024, 1024))
     if len(array.chunks[0]) != 1:
         array = array.rechunk({0: -1})
-    bands, rows, cols = array.shape
-    dtype = np.dtype(array.dtype)
+    blocks = _iter_blocks(array, scheduler, in_flight, progress, in_flight_default)
+    return wkt, transform, nodata, np.dtype(array.dtype), array.shape, blocks
+
+
+def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: int,
+                 compress: str | None, level: int | None, nodata: float | None, scheduler: Any,
+                 in_flight: int | None, progress: bool, empty: str,
+                 creation_options: dict[str, Any]) -> None:
+    """:func:`write_ortho`'s work: the file written to ``tmp`` (the COG through a second
+    temporary GeoTIFF beside it)."""
+    import rasterio
+    import rasterio.shutil
+
+    from geoblock.io._atomic import _temporary_for
+
+    cog = driver.upper() == "COG"
+    user = {str(k).lower(): v for k, v in creation_options.items()}
+    compression = compression_options(compress, level, cog)
+    in_flight_default = in_flight is None
     if in_flight is None:
         in_flight = 2 * (os.cpu_count() or 1)
+    job = _is_job(data)
+    if job and _local_threads(scheduler) and _distributed_client(scheduler) is None:
+        # local threads: the job's chunks on a thread pool, without dask
+        wkt, transform = data.grid.crs.to_wkt(), data.grid.transform
+        if nodata is None:
+            nodata = data.fill
+        bands, rows, cols = data.shape
+        dtype = data.dtype
+        blocks = _iter_job(data, in_flight, progress)
+    else:
+        if job:
+            data = data.to_dataarray()
+        wkt, transform, nodata, dtype, (bands, rows, cols), blocks = _dask_blocks(
+            data, nodata, scheduler, in_flight, progress, in_flight_default)
     profile: dict[str, Any] = {
         "driver": "GTiff",
         "width": cols,
@@ -691,10 +770,13 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
         "tiled": True,
         "blockxsize": int(blocksize),
         "blockysize": int(blocksize),
-        "BIGTIFF": "IF_SAFER",
+        "bigtiff": "IF_SAFER",
     }
-    if compress:
-        profile["compress"] = compress
+    if not cog:  # a COG's intermediate GeoTIFF is written uncompressed (GDAL compresses once)
+        profile.update(compression)
+        profile.update(user)
+        for key in ("blockxsize", "blockysize"):
+            profile[key] = _int_option(profile[key], key)
     if wkt:
         profile["crs"] = rasterio.crs.CRS.from_wkt(wkt)
     if transform is not None:
@@ -702,17 +784,15 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
     if nodata is not None and not (isinstance(nodata, float) and math.isnan(nodata)
                                    and dtype.kind in "iub"):
         profile["nodata"] = nodata
-    profile.update(creation_options)
     valid_nodata = profile.get("nodata")
     valid_nodata = None if valid_nodata is None else float(valid_nodata)
     any_valid = empty == "ignore"
-    cog = driver.upper() == "COG"
     gtiff = _temporary_for(path) if cog else tmp
     try:
         with rasterio.open(gtiff, "w", **profile) as dst:
             strips = _TileRows(dst, bands, rows, cols, int(profile["blockysize"]),
                                np.dtype(profile["dtype"]))
-            for r0, c0, block in _iter_blocks(array, scheduler, in_flight, progress):
+            for r0, c0, block in blocks:
                 block = np.asarray(block)
                 if block.dtype == np.dtype(bool):
                     block = block.astype(np.uint8)
@@ -727,8 +807,8 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
                 raise EmptyOutputError(message + "; nothing was written")
             warnings.warn(message + "; written anyway", EmptyOutputWarning, stacklevel=3)
         if cog:
-            options = {"compress": compress} if compress else {}
-            rasterio.shutil.copy(gtiff, tmp, driver="COG", blocksize=int(blocksize), **options)
+            options = {"blocksize": int(blocksize), **compression, **user}
+            rasterio.shutil.copy(gtiff, tmp, driver="COG", **options)
     finally:
         if cog:
             gtiff.unlink(missing_ok=True)

@@ -5,22 +5,63 @@
   method on a refined lattice, chunk-independent);
 * :func:`resample` / :func:`cast` - nearest, bilinear, bicubic and windowed-sinc kernels;
 * :func:`orthorectify` - the lazy ``(band, y, x)`` orthoimage (``geoblock.io.write_ortho``
-  writes it).
+  writes it); :func:`ortho_job` - the same chunks without dask (``write_ortho`` runs them on
+  local threads).
 """
 
-from geoblock.ortho.graph import orthorectify
-from geoblock.ortho.grid import OutputGrid
-from geoblock.ortho.kernels import KERNEL_RADIUS, KERNELS, cast, resample
-from geoblock.ortho.lattice import LatticeInfo, source_coordinates
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from geoblock.ortho.graph import OrthoJob, ortho_job, orthorectify
+    from geoblock.ortho.grid import OutputGrid
+    from geoblock.ortho.kernels import KERNEL_RADIUS, KERNELS, cast, resample
+    from geoblock.ortho.lattice import LatticeInfo, source_coordinates
+
+# ``mosaic`` is both a submodule and its function: imported here, or a later import of the
+# submodule would leave the module under the function's name
 from geoblock.ortho.mosaic import mosaic
+
+# the rest is imported on first use (PEP 562): the orthorectifier's numba kernels, dask and
+# PROJ are not loaded by a command that only needs ``geoblock.ortho.limits``
+_LAZY = {
+    "orthorectify": "geoblock.ortho.graph",
+    "OrthoJob": "geoblock.ortho.graph",
+    "ortho_job": "geoblock.ortho.graph",
+    "OutputGrid": "geoblock.ortho.grid",
+    "KERNEL_RADIUS": "geoblock.ortho.kernels",
+    "KERNELS": "geoblock.ortho.kernels",
+    "cast": "geoblock.ortho.kernels",
+    "resample": "geoblock.ortho.kernels",
+    "LatticeInfo": "geoblock.ortho.lattice",
+    "source_coordinates": "geoblock.ortho.lattice",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'geoblock.ortho' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "KERNELS",
     "KERNEL_RADIUS",
     "LatticeInfo",
+    "OrthoJob",
     "OutputGrid",
     "cast",
     "mosaic",
+    "ortho_job",
     "orthorectify",
     "resample",
     "source_coordinates",

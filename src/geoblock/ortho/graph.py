@@ -1,4 +1,11 @@
-"""``orthorectify``: a lazy, dask-chunked orthoimage as an ``xarray.DataArray``.
+"""``orthorectify``: a lazy, dask-chunked orthoimage as an ``xarray.DataArray``; ``ortho_job``:
+the same chunks without dask.
+
+:func:`ortho_job` checks the inputs and cuts the output grid into chunks (an
+:class:`OrthoJob`); :func:`orthorectify` turns the job into a dask graph wrapped in a
+DataArray, and :func:`geoblock.io.write_ortho` on local threads runs the job's chunks on a
+thread pool directly (no dask or xarray import: a command's start-up). Both run
+:func:`ortho_chunk` on the same arguments.
 
 The graph has one task per output chunk and no dependencies between tasks. A task receives
 only picklable values - the image (an :class:`~geoblock.io.images.ImageSource`, by path, or
@@ -20,6 +27,7 @@ Keys are ``ortho-<tokenize(inputs)>``: the same inputs give the same graph.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -39,7 +47,7 @@ if TYPE_CHECKING:
     from geoblock.models.protocol import SensorModel
     from geoblock.ortho.grid import OutputGrid
 
-__all__ = ["ortho_chunk", "orthorectify"]
+__all__ = ["OrthoJob", "ortho_chunk", "ortho_job", "orthorectify"]
 
 
 def _default_fill(dtype: np.dtype, source_nodata: float | None) -> float:
@@ -123,6 +131,87 @@ def _coords(grid: OutputGrid, bands: int, fill: Any) -> dict[str, Any]:
     return {"band": np.arange(1, bands + 1), "y": y, "x": x, "spatial_ref": spatial_ref}
 
 
+@dataclass(frozen=True, eq=False)
+class OrthoJob:
+    """One orthorectification, planned: its inputs and its output chunks (see :func:`ortho_job`).
+
+    Attributes
+    ----------
+    image : ImageSource or ArrayImage
+    model : SensorModel
+        Reconciled with the image (crop offset applied).
+    dem : DemSource
+    grid : OutputGrid
+        The full output grid.
+    kernel : str
+    tolerance_px : float
+        Lattice tolerance, source pixels.
+    fill : float
+        Output value of invalid pixels (the file's nodata).
+    block_px : int
+        Lattice block side, output pixels.
+    row_chunks, col_chunks : tuple of (start, stop)
+        The chunks' output rows and columns; the chunks are their product.
+    """
+
+    image: OpenedImage
+    model: SensorModel
+    dem: DemSource
+    grid: OutputGrid
+    kernel: str
+    tolerance_px: float
+    fill: float
+    block_px: int
+    row_chunks: tuple[tuple[int, int], ...]
+    col_chunks: tuple[tuple[int, int], ...]
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """``(bands, rows, cols)`` of the output."""
+        return (self.image.bands, int(self.grid.shape[0]), int(self.grid.shape[1]))
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The output's dtype (the image's)."""
+        return np.dtype(self.image.dtype)
+
+    def windows(self) -> list[tuple[int, int, int, int]]:
+        """Every chunk's ``(row_start, row_stop, col_start, col_stop)``, row-major order."""
+        return [(ra, rb, ca, cb) for ra, rb in self.row_chunks for ca, cb in self.col_chunks]
+
+    def chunk(self, window: tuple[int, int, int, int]) -> np.ndarray:
+        """Compute one chunk: :func:`ortho_chunk` on this job's inputs, ``(bands, R, C)``."""
+        return ortho_chunk(self.image, self.model, self.dem, self.grid, window, self.kernel,
+                           self.tolerance_px, self.fill, self.block_px)
+
+    def to_dataarray(self) -> xr.DataArray:
+        """The lazy ``(band, y, x)`` DataArray of :func:`orthorectify`: one dask task per
+        chunk, no dependencies, keys ``ortho-<tokenize(inputs)>``."""
+        import dask.array as da
+        import xarray as xr
+        from dask.base import tokenize
+        from dask.highlevelgraph import HighLevelGraph
+
+        src, rc, cc = self.image, self.row_chunks, self.col_chunks
+        args = (self.model, self.dem, self.grid)
+        name = "ortho-" + tokenize(src, *args, self.kernel, self.tolerance_px, self.fill,
+                                   self.block_px, rc, cc)
+        dsk: dict[Any, Any] = {}
+        for i, (ra, rb) in enumerate(rc):
+            for j, (ca, cb) in enumerate(cc):
+                dsk[(name, 0, i, j)] = (ortho_chunk, src, *args, (ra, rb, ca, cb), self.kernel,
+                                        self.tolerance_px, self.fill, self.block_px)
+        graph = HighLevelGraph.from_collections(name, dsk, dependencies=())
+        array = da.Array(graph, name,
+                         chunks=((src.bands,), tuple(b - a for a, b in rc),
+                                 tuple(b - a for a, b in cc)),
+                         dtype=self.dtype)
+        return xr.DataArray(
+            array, dims=("band", "y", "x"), coords=_coords(self.grid, src.bands, self.fill),
+            attrs={"_FillValue": self.fill, "grid_mapping": "spatial_ref"}, name="ortho",
+        )
+
+
 def orthorectify(
     image: ImageLike,
     model: SensorModel,
@@ -195,11 +284,83 @@ def orthorectify(
     CropError
         The image and the model do not fit (shapes, crop offset).
     """
-    import dask.array as da
-    import xarray as xr
-    from dask.base import tokenize
-    from dask.highlevelgraph import HighLevelGraph
+    return ortho_job(image, model, dem, grid, kernel=kernel, tolerance_px=tolerance_px,
+                     chunks=chunks, nodata=nodata, block_px=block_px, crop_offset=crop_offset,
+                     crop=crop).to_dataarray()
 
+
+def ortho_job(
+    image: ImageLike,
+    model: SensorModel,
+    dem: EngineDem,
+    grid: OutputGrid | None = None,
+    *,
+    kernel: str = "bilinear",
+    tolerance_px: float = 0.01,
+    chunks: int | tuple[int, int] = 1024,
+    nodata: float | None = None,
+    block_px: int = BLOCK_PX,
+    crop_offset: tuple[float, float] | None = None,
+    crop: bool = True,
+) -> OrthoJob:
+    """Plan an orthorectification: the inputs checked and the output cut into chunks.
+
+    Takes :func:`orthorectify`'s arguments and computes nothing (the default grid aside,
+    which projects the scene outline). The :class:`OrthoJob` runs its chunks itself
+    (:meth:`OrthoJob.chunk`, what :func:`geoblock.io.write_ortho` does on local threads:
+    no dask graph, no dask or xarray import) or becomes :func:`orthorectify`'s DataArray
+    (:meth:`OrthoJob.to_dataarray`: dask processes, dask.distributed); both run the same
+    chunk function on the same arguments, so they give the same values.
+
+    Parameters
+    ----------
+    image : str, os.PathLike, ImageSource, rasterio dataset, xarray.DataArray or ndarray
+        The source image: any raster file rasterio reads, or pixels in memory (an open
+        rasterio dataset, a ``(band, y, x)`` DataArray, a ``(bands, R, C)`` or ``(R, C)``
+        numpy array in the sensor's geometry; :func:`geoblock.io.open_image` says how each
+        is taken, and takes a nodata value for arrays). Bands, dtype and nodata are kept; the
+        result is the same, value for value, whichever form the pixels come in.
+    model : SensorModel
+        The image's sensor model (ground -> image through ``project_with_status``).
+    dem : DemSource, float, or anything geoblock.open_dem opens
+        Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`); a number is a
+        constant height, a path or opened raster is opened with ``open_dem``'s defaults.
+    grid : OutputGrid, optional
+        Default :meth:`OutputGrid.for_model(model, dem) <geoblock.ortho.grid.OutputGrid.for_model>`
+        (UTM zone, GSD rounded to a nice number, footprint, aligned, checked).
+    kernel : {"nearest", "bilinear", "bicubic", "sinc"}
+        Resampling kernel.
+    tolerance_px : float
+        Largest lattice interpolation error accepted at the check points, source pixels;
+        ``0`` projects every output pixel exactly.
+    chunks : int or (int, int)
+        Output chunk ``(rows, cols)``, pixels. The values do not depend on it.
+    nodata : float, optional
+        Output value of pixels with no source (outside the image, no DEM height, source
+        nodata); default the source nodata, else NaN for float images and 0 for integers.
+    block_px : int
+        Lattice block side, output pixels (a power of two).
+    crop_offset : (float, float), optional
+        ``(row0, col0)``: the image is the crop of ``model``'s scene whose first pixel is
+        scene pixel ``(row0, col0)``; default: as the image's pixel-unit geotransform states
+        it, if it does (:func:`~geoblock.models.crop.model_for_image`).
+    crop : bool
+        False: use ``model`` as it is, image pixel ``(r, c)`` being model pixel ``(r, c)``
+        (no crop offset, no shape check; e.g. a model already reconciled with the image).
+
+    Returns
+    -------
+    OrthoJob
+
+    Raises
+    ------
+    InputTypeError
+        ``image`` or ``dem`` is of a kind geoblock cannot read (the message names it).
+    GeoblockIOError, DemError
+        The image or the DEM cannot be opened.
+    CropError
+        The image and the model do not fit (shapes, crop offset).
+    """
     from geoblock.io.images import open_image
     from geoblock.models.crop import model_for_image
     from geoblock.ortho.grid import OutputGrid
@@ -221,21 +382,5 @@ def orthorectify(
     windows = grid.chunks(chunks)
     row_chunks = tuple(dict.fromkeys((w[0].start, w[0].stop) for w in windows))
     col_chunks = tuple(dict.fromkeys((w[1].start, w[1].stop) for w in windows))
-    name = "ortho-" + tokenize(src, model, dem, grid, kernel, float(tolerance_px), fill,
-                               int(block_px), row_chunks, col_chunks)
-    dsk: dict[Any, Any] = {}
-    for i, (ra, rb) in enumerate(row_chunks):
-        for j, (ca, cb) in enumerate(col_chunks):
-            dsk[(name, 0, i, j)] = (ortho_chunk, src, model, dem, grid, (ra, rb, ca, cb), kernel,
-                                    float(tolerance_px), fill, int(block_px))
-    graph = HighLevelGraph.from_collections(name, dsk, dependencies=())
-    array = da.Array(
-        graph, name,
-        chunks=((src.bands,), tuple(b - a for a, b in row_chunks),
-                tuple(b - a for a, b in col_chunks)),
-        dtype=dtype,
-    )
-    return xr.DataArray(
-        array, dims=("band", "y", "x"), coords=_coords(grid, src.bands, fill),
-        attrs={"_FillValue": fill, "grid_mapping": "spatial_ref"}, name="ortho",
-    )
+    return OrthoJob(src, model, dem, grid, kernel, float(tolerance_px), fill, int(block_px),
+                    row_chunks, col_chunks)

@@ -51,6 +51,7 @@ from affine import Affine
 
 from geoblock import coords
 from geoblock.errors import GridError
+from geoblock.ortho.limits import MAX_DEGREES, MAX_PIXELS, MAX_SIDE, MIN_SIDE
 from geoblock.pixels import corner_to_centre, image_domain, pixel_to_map
 from geoblock.typing import ArrayLike, GroundCoords
 
@@ -63,14 +64,6 @@ __all__ = ["MAX_PIXELS", "OutputGrid", "image_outline", "nice_resolution"]
 
 _TAP_EPS = 1e-8  # gdalwarp's tolerance when snapping -tap bounds
 
-#: default largest number of pixels of a checked grid (:meth:`OutputGrid.check`), ~6.9e10
-MAX_PIXELS = 2**36
-#: largest number of pixels per side (GDAL's raster sizes are C ints)
-MAX_SIDE = 2**31 - 1
-#: smallest number of pixels per side of a checked grid
-MIN_SIDE = 2
-#: largest pixel size, degrees, in a geographic CRS
-MAX_DEGREES = 1.0
 #: mantissas of the "nice" resolutions
 NICE_MANTISSAS = (1.0, 2.0, 2.5, 5.0)
 

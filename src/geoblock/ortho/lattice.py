@@ -322,8 +322,7 @@ class _Context:
         return np.asarray(row, dtype=np.float64), np.asarray(col, dtype=np.float64)
 
     def height(self, lon: ArrayLike, lat: ArrayLike) -> np.ndarray:
-        h, _ = self.dem.height_with_status(lon, lat)
-        return np.asarray(h, dtype=np.float64)
+        return np.asarray(self.dem.height(lon, lat), dtype=np.float64)
 
     def exact(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact image coordinates of global pixel indices (any shape)."""

@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
 
 from geoblock.cli.options import model_arg, model_name_opt, open_model_arg
 
@@ -197,6 +196,8 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
 def _control(ground_path: str, image_path: str, image_id: str | None, sigma_px: float
              ) -> tuple[Any, Any, str]:
     """GCPs and ICPs of one image, joined by point id from the two CSV files."""
+    import numpy as np
+
     from geoblock.adjust import GroundPoints, ImagePoints
     from geoblock.errors import ObservationError, PointFileError
     from geoblock.io import read_points

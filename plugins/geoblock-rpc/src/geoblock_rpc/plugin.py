@@ -4,6 +4,9 @@ writers, and the ``geoblock fit-rfm`` and ``geoblock export-rpc`` commands.
 The writer exports **any** sensor model as an RPC00B through :func:`geoblock_rpc.export.export_rpc`
 and reports what it did (exact, folded or fitted) by an
 :class:`~geoblock_rpc.export.RpcExportWarning`.
+
+Cheap to import (geoblock imports it whenever it lists its plugins, ``geoblock --help``
+included): the models, readers and writers are imported inside the hooks.
 """
 
 from __future__ import annotations
@@ -14,16 +17,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import geoblock
-from geoblock.models.protocol import SensorModel
-from geoblock_rpc.export import EXPORT_OPTIONS, RpcExportWarning, export_rpc
-from geoblock_rpc.model import RpcModel
 
 if TYPE_CHECKING:  # pragma: no cover
     import click
 
+    from geoblock.models.protocol import SensorModel
+    from geoblock_rpc.model import RpcModel
+
 
 @geoblock.hookimpl
 def geoblock_register_sensor_models(register: Callable[[type[SensorModel]], None]) -> None:
+    from geoblock_rpc.model import RpcModel
     from geoblock_rpc.rfm import RfmModel
 
     register(RpcModel)
@@ -50,6 +54,8 @@ def geoblock_read_sensor_model(
     model than ``"rpc"`` is asked for. Options: ``crop_offset``, ``crop_from_geotransform``,
     ``image`` (see :mod:`geoblock_rpc.readers`).
     """
+    from geoblock_rpc.model import RpcModel
+
     if (model_name is not None and model_name != RpcModel.name) or Path(path).is_dir():
         return None
     from geoblock_rpc.readers import _read
@@ -77,6 +83,7 @@ def geoblock_write_sensor_model(
     report is issued as an :class:`RpcExportWarning` (a
     :class:`~geoblock.errors.GeoblockWarning`) so that callers show it.
     """
+    from geoblock_rpc.export import EXPORT_OPTIONS, RpcExportWarning, export_rpc
     from geoblock_rpc.writers import WRITERS
 
     if format not in WRITERS:
