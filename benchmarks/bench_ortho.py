@@ -60,7 +60,7 @@ import numpy as np
 HERE = Path(__file__).resolve()
 SCENE_SIDE_M = 5000.0  # output grid: the central 5 km x 5 km of the scene
 UTM = "EPSG:32632"
-TARGET_MPIX = 40.0
+TARGET_MPIX = 80.0  # issue 16 (was 40)
 TARGET_PEAK_MIB = 1024.0
 TILE = 512
 
