@@ -40,6 +40,7 @@ LAYERS: dict[str, int] = {
     "geoblock.pixels": 0,
     "geoblock._array": 0,
     "geoblock._affine": 0,
+    "geoblock._lazy": 0,  # PEP 562 lazy names of the packages
     "geoblock.coords": 0,
     # 1 file primitives: the lowest part of io, which the lazily-read values use
     "geoblock.io.files": 1,

@@ -314,39 +314,8 @@ def ortho_job(
 
     Parameters
     ----------
-    image : str, os.PathLike, ImageSource, rasterio dataset, xarray.DataArray or ndarray
-        The source image: any raster file rasterio reads, or pixels in memory (an open
-        rasterio dataset, a ``(band, y, x)`` DataArray, a ``(bands, R, C)`` or ``(R, C)``
-        numpy array in the sensor's geometry; :func:`geoblock.io.open_image` says how each
-        is taken, and takes a nodata value for arrays). Bands, dtype and nodata are kept; the
-        result is the same, value for value, whichever form the pixels come in.
-    model : SensorModel
-        The image's sensor model (ground -> image through ``project_with_status``).
-    dem : DemSource, float, or anything geoblock.open_dem opens
-        Terrain heights above the WGS84 ellipsoid (:func:`geoblock.open_dem`); a number is a
-        constant height, a path or opened raster is opened with ``open_dem``'s defaults.
-    grid : OutputGrid, optional
-        Default :meth:`OutputGrid.for_model(model, dem) <geoblock.ortho.grid.OutputGrid.for_model>`
-        (UTM zone, GSD rounded to a nice number, footprint, aligned, checked).
-    kernel : {"nearest", "bilinear", "bicubic", "sinc"}
-        Resampling kernel.
-    tolerance_px : float
-        Largest lattice interpolation error accepted at the check points, source pixels;
-        ``0`` projects every output pixel exactly.
-    chunks : int or (int, int)
-        Output chunk ``(rows, cols)``, pixels. The values do not depend on it.
-    nodata : float, optional
-        Output value of pixels with no source (outside the image, no DEM height, source
-        nodata); default the source nodata, else NaN for float images and 0 for integers.
-    block_px : int
-        Lattice block side, output pixels (a power of two).
-    crop_offset : (float, float), optional
-        ``(row0, col0)``: the image is the crop of ``model``'s scene whose first pixel is
-        scene pixel ``(row0, col0)``; default: as the image's pixel-unit geotransform states
-        it, if it does (:func:`~geoblock.models.crop.model_for_image`).
-    crop : bool
-        False: use ``model`` as it is, image pixel ``(r, c)`` being model pixel ``(r, c)``
-        (no crop offset, no shape check; e.g. a model already reconciled with the image).
+    image, model, dem, grid, kernel, tolerance_px, chunks, nodata, block_px, crop_offset, crop
+        As :func:`orthorectify`.
 
     Returns
     -------
