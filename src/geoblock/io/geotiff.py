@@ -1,13 +1,15 @@
 """GeoTIFF output options of :func:`geoblock.io.write_ortho` (``geoblock ortho``, ``geoblock
 mosaic``): the compressions, the default and its measured reason, the levels.
 
-A module of its own, importing nothing, so that the command line shows them in ``--help``
-without importing numpy or GDAL.
+A module of its own, importing only :mod:`geoblock.errors`, so that the command line shows
+them in ``--help`` without importing numpy or GDAL.
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+from geoblock.errors import UnsupportedFormatError
 
 __all__ = ["COMPRESSIONS", "DEFAULT_COMPRESS", "FAST_LEVEL", "LEVEL_KEY", "compression_options"]
 
@@ -44,13 +46,13 @@ def compression_options(compress: str | None, level: int | None, cog: bool) -> d
 
     Raises
     ------
-    ValueError
-        An unknown compression, or a level for one that has none.
+    UnsupportedFormatError
+        An unknown compression, or a level for one that has none (a ValueError).
     """
     name = "none" if compress is None else str(compress).lower()
     if name not in COMPRESSIONS:
-        raise ValueError(f"write_ortho: compress must be one of {COMPRESSIONS} or None, got "
-                         f"{compress!r}")
+        raise UnsupportedFormatError(f"write_ortho: compress must be one of {COMPRESSIONS} or "
+                                     f"None, got {compress!r}")
     if name == "none":
         return {"compress": "none"} if cog else {}
     options: dict[str, Any] = {"compress": name}
@@ -58,6 +60,7 @@ def compression_options(compress: str | None, level: int | None, cog: bool) -> d
         level = FAST_LEVEL.get(name)
     if level is not None:
         if name not in LEVEL_KEY:
-            raise ValueError(f"write_ortho: {name} has no compression level (level={level})")
+            raise UnsupportedFormatError(f"write_ortho: {name} has no compression level "
+                                         f"(level={level})")
         options["level" if cog else LEVEL_KEY[name]] = int(level)
     return options

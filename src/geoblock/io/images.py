@@ -33,6 +33,7 @@ from geoblock.errors import (
     EmptyOutputWarning,
     GeoblockIOError,
     InputTypeError,
+    UnsupportedFormatError,
 )
 from geoblock.io._atomic import atomic_path
 from geoblock.io._progress import Progress as _Progress
@@ -705,8 +706,8 @@ def _int_option(value: Any, key: str) -> int:
     except (TypeError, ValueError):
         number = 0
     if number <= 0 or number % 16:
-        raise ValueError(f"write_ortho: {key.upper()} must be a positive multiple of 16, got "
-                         f"{value!r}")
+        raise UnsupportedFormatError(f"write_ortho: {key.upper()} must be a positive multiple "
+                                     f"of 16, got {value!r}")
     return number
 
 
