@@ -77,7 +77,10 @@ def make_coarse(directory: Path) -> dict:
 
     directory.mkdir(parents=True, exist_ok=True)
     source, dem = directory / "spot2.tif", directory / "dem400.tif"
-    rpc, _ = export_rpc(geoblock.open_model(SPOT2))  # fitted, ~0.06 px
+    if source.exists():  # written by an earlier run: its RPC tags, not a second fit
+        rpc = geoblock.open_model(source)
+    else:
+        rpc, _ = export_rpc(geoblock.open_model(SPOT2))  # fitted, ~0.06 px
     rows, cols = rpc.shape
     if not source.exists():
         rng = np.random.default_rng(1)

@@ -415,8 +415,13 @@ def _distributed_client(scheduler: Any) -> Any:
     return None
 
 
-def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool,
-                 in_flight_default: bool = False) -> Iterator[tuple[int, int, np.ndarray]]:
+def _local_in_flight() -> int:
+    """The default number of chunks computed ahead of the writer here: 2 per core."""
+    return 2 * (os.cpu_count() or 1)
+
+
+def _iter_blocks(array: Any, scheduler: Any, in_flight: int | None,
+                 progress: bool) -> Iterator[tuple[int, int, np.ndarray]]:
     """Yield ``(row0, col0, block)`` of a (bands, y, x) dask array in row-major chunk order,
     computing up to ``in_flight`` chunks ahead of the one yielded (finished chunks wait for
     their turn: the order of the writes, hence the file's bytes, never depends on which chunk
@@ -429,10 +434,12 @@ def _iter_blocks(array: Any, scheduler: Any, in_flight: int, progress: bool,
              for i in range(delayed.shape[1]) for j in range(delayed.shape[2])]
     bar = _Progress(len(items), progress)
     client = _distributed_client(scheduler)
+    if in_flight is None:
+        in_flight = _local_in_flight()
+        if client is not None:  # two chunks per worker thread of the cluster, not of here
+            in_flight = max(in_flight, 2 * sum(client.nthreads().values()))
     try:
         if client is not None:
-            if in_flight_default:  # two chunks per worker thread of the cluster, not of here
-                in_flight = max(in_flight, 2 * sum(client.nthreads().values()))
             def result(fut: Any) -> Any:
                 block = fut.result()
                 fut.release()
@@ -711,8 +718,8 @@ def _int_option(value: Any, key: str) -> int:
     return number
 
 
-def _dask_blocks(data: Any, nodata: float | None, scheduler: Any, in_flight: int,
-                 progress: bool, in_flight_default: bool) -> tuple[Any, ...]:
+def _dask_blocks(data: Any, nodata: float | None, scheduler: Any, in_flight: int | None,
+                 progress: bool) -> tuple[Any, ...]:
     """Georeferencing, nodata, dtype, shape and the block iterator of a ``(band, y, x)``
     DataArray (computed through dask)."""
     import dask.array as da
@@ -727,7 +734,7 @@ def _dask_blocks(data: Any, nodata: float | None, scheduler: Any, in_flight: int
         array = da.from_array(np.asarray(array), chunks=(-1, 1024, 1024))
     if len(array.chunks[0]) != 1:
         array = array.rechunk({0: -1})
-    blocks = _iter_blocks(array, scheduler, in_flight, progress, in_flight_default)
+    blocks = _iter_blocks(array, scheduler, in_flight, progress)
     return wkt, transform, nodata, np.dtype(array.dtype), array.shape, blocks
 
 
@@ -745,9 +752,6 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
     cog = driver.upper() == "COG"
     user = {str(k).lower(): v for k, v in creation_options.items()}
     compression = compression_options(compress, level, cog)
-    in_flight_default = in_flight is None
-    if in_flight is None:
-        in_flight = 2 * (os.cpu_count() or 1)
     job = _is_job(data)
     if job and _local_threads(scheduler) and _distributed_client(scheduler) is None:
         # local threads: the job's chunks on a thread pool, without dask
@@ -756,12 +760,13 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
             nodata = data.fill
         bands, rows, cols = data.shape
         dtype = data.dtype
-        blocks = _iter_job(data, in_flight, progress)
+        blocks = _iter_job(data, _local_in_flight() if in_flight is None else in_flight,
+                           progress)
     else:
         if job:
             data = data.to_dataarray()
         wkt, transform, nodata, dtype, (bands, rows, cols), blocks = _dask_blocks(
-            data, nodata, scheduler, in_flight, progress, in_flight_default)
+            data, nodata, scheduler, in_flight, progress)
     profile: dict[str, Any] = {
         "driver": "GTiff",
         "width": cols,

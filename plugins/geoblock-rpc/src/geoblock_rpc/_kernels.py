@@ -80,6 +80,14 @@ def _dot20(c, t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11, t12, t13, t14, t
 
 
 @njit(inline="always", fastmath=_FASTMATH)
+def _poly20(c, L, P, H, LP, LH, PH, LL, PP, HH):
+    """The RPC00B cubic with coefficients ``c`` at (L, P, H), given their pairwise products
+    (the 20 terms of :data:`geoblock_rpc.rpc00b.TERMS`, in their order)."""
+    return _dot20(c, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
+                  L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+
+
+@njit(inline="always", fastmath=_FASTMATH)
 def _ratios(coef, L, P, H):
     """(line_n, samp_n): normalised row and column at normalised ground (L, P, H)."""
     LP = L * P
@@ -88,14 +96,10 @@ def _ratios(coef, L, P, H):
     LL = L * L
     PP = P * P
     HH = H * H
-    ln = _dot20(coef[0], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
-    ld = _dot20(coef[1], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
-    sn = _dot20(coef[2], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
-    sd = _dot20(coef[3], 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-                L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    ln = _poly20(coef[0], L, P, H, LP, LH, PH, LL, PP, HH)
+    ld = _poly20(coef[1], L, P, H, LP, LH, PH, LL, PP, HH)
+    sn = _poly20(coef[2], L, P, H, LP, LH, PH, LL, PP, HH)
+    sd = _poly20(coef[3], L, P, H, LP, LH, PH, LL, PP, HH)
     return ln / ld, sn / sd
 
 
@@ -108,10 +112,8 @@ def _ratio_derivatives(cn, cd, L, P, H):
     LL = L * L
     PP = P * P
     HH = H * H
-    n = _dot20(cn, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
-    d = _dot20(cd, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    n = _poly20(cn, L, P, H, LP, LH, PH, LL, PP, HH)
+    d = _poly20(cd, L, P, H, LP, LH, PH, LL, PP, HH)
     # derivatives of the 20 terms (see rpc00b.TERMS) with respect to L, P and H
     n_l = _dot20(cn, 0.0, 1.0, 0.0, 0.0, P, H, 0.0, 2 * L, 0.0, 0.0, PH, 3 * LL, PP,
                  HH, 2 * LP, 0.0, 0.0, 2 * LH, 0.0, 0.0)
@@ -153,10 +155,8 @@ def _ratio_lp(cn, cd, L, P, H):
     LL = L * L
     PP = P * P
     HH = H * H
-    n = _dot20(cn, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
-    d = _dot20(cd, 1.0, L, P, H, LP, LH, PH, LL, PP, HH, LP * H, LL * L, L * PP,
-               L * HH, LL * P, PP * P, P * HH, LL * H, PP * H, HH * H)
+    n = _poly20(cn, L, P, H, LP, LH, PH, LL, PP, HH)
+    d = _poly20(cd, L, P, H, LP, LH, PH, LL, PP, HH)
     n_l = _d_dl(cn, L, P, H, LP, LH, PH, LL, PP, HH)
     d_l = _d_dl(cd, L, P, H, LP, LH, PH, LL, PP, HH)
     n_p = _d_dp(cn, L, P, H, LP, LH, PH, LL, PP, HH)
