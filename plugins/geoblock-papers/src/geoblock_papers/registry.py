@@ -1,0 +1,147 @@
+"""The experiments by name, and :func:`run_experiment`, which runs one into a directory.
+
+An experiment is a module with:
+
+``TITLE`` : str
+    One line, e.g. ``"Teo et al. (2010): DEM-aided block adjustment of three SPOT-5 strips"``.
+``CITATION`` : str
+    The paper, as cited in ``../shared/papers/README.md``.
+``SEEDS`` : dict
+    Repetitions per variant, e.g. ``{"small": 3, "full": 10}``.
+``run(report, *, full, seeds, progress)``
+    Simulates and adjusts, once per seed of ``seeds``, and fills ``report``
+    (:class:`~geoblock_papers.report.Report`): sections, side-by-side tables with the paper's
+    figures, findings (reproduced or not, and why), figures and results.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+from geoblock.errors import GeoblockError
+
+__all__ = ["EXPERIMENTS", "ExperimentError", "ExperimentResult", "run_experiment"]
+
+
+class ExperimentError(GeoblockError, ValueError):
+    """Unknown experiment, or options an experiment cannot run with."""
+
+
+@dataclass(frozen=True)
+class _Entry:
+    module: str
+    summary: str
+
+
+#: Experiment name -> its module and a one-line summary (``geoblock experiment --help``).
+EXPERIMENTS: dict[str, _Entry] = {
+    "teo2010": _Entry("geoblock_papers.teo2010",
+                      "Teo et al. 2010: MBA, DG and RFM, single vs block, DEM control, "
+                      "collocation, on three SPOT-5 strips"),
+    "chen2008": _Entry("geoblock_papers.chen2008",
+                       "Chen, Teo & Lo 2008: the conference version's tables (elevation-"
+                       "controlled block adjustment)"),
+    "chen1993": _Entry("geoblock_papers.chen1993",
+                       "Chen & Lee 1993: SPOT resection residuals, check points, orthoimage "
+                       "RMSE over rolling and rugged terrain"),
+    "aguilar2007": _Entry("geoblock_papers.aguilar2007",
+                          "Aguilar et al. 2007: RPCV-0, RPCV-1, RFM-1 and the physical model vs "
+                          "GCP count and sampling, along-track error, ortho error budget"),
+}
+
+
+@dataclass(frozen=True)
+class ExperimentResult:
+    """What :func:`run_experiment` wrote.
+
+    Attributes
+    ----------
+    name : str
+    outdir : pathlib.Path
+    report : pathlib.Path
+        ``report.md``.
+    results : pathlib.Path
+        ``results.json``.
+    figures : tuple of pathlib.Path
+    seconds : float
+        Wall time.
+    """
+
+    name: str
+    outdir: Path
+    report: Path
+    results: Path
+    figures: tuple[Path, ...]
+    seconds: float
+
+
+def experiment_module(name: str) -> ModuleType:
+    """The module of experiment ``name``.
+
+    Raises
+    ------
+    ExperimentError
+        Unknown name (the message lists the known ones).
+    """
+    if name not in EXPERIMENTS:
+        raise ExperimentError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}")
+    return importlib.import_module(EXPERIMENTS[name].module)
+
+
+def run_experiment(
+    name: str,
+    outdir: str | os.PathLike[str],
+    *,
+    full: bool = False,
+    repeats: int | None = None,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> ExperimentResult:
+    """Run experiment ``name`` and write its report into ``outdir`` (created if absent; files
+    of the same name are replaced).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`EXPERIMENTS`.
+    outdir : str or os.PathLike
+    full : bool
+        The papers' image sizes and the full number of repetitions (minutes to hours) instead
+        of the small variant (seconds to a minute).
+    repeats : int, optional
+        Repetitions over seeds (default: the experiment's ``SEEDS`` for the variant).
+    seed : int
+        The first seed; repetition ``k`` uses ``seed + k``.
+    progress : callable, optional
+        Called with one-line messages.
+
+    Returns
+    -------
+    ExperimentResult
+    """
+    from geoblock_papers.report import Report
+
+    module = experiment_module(name)
+    variant = "full" if full else "small"
+    count = int(repeats) if repeats is not None else int(module.SEEDS[variant])
+    if count < 1:
+        raise ExperimentError(f"experiment {name}: repeats must be >= 1, got {count}")
+    seeds: Sequence[int] = tuple(int(seed) + k for k in range(count))
+    say = progress or (lambda message: None)
+    start = time.perf_counter()
+    report = Report(name, module.TITLE, module.CITATION, variant=variant, seeds=seeds,
+                    outdir=Path(outdir))
+    say(f"experiment {name} ({variant}, {count} seed{'s' if count > 1 else ''}): "
+        f"{module.TITLE}")
+    module.run(report, full=full, seeds=seeds, progress=say)
+    seconds = time.perf_counter() - start
+    paths = report.write(seconds=seconds)
+    say(f"done in {seconds:.0f} s: {paths['report']}")
+    return ExperimentResult(name, Path(outdir), paths["report"], paths["results"],
+                            tuple(report.figures), seconds)
