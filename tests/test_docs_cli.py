@@ -3,11 +3,15 @@
 The page holds a ``::: mkdocs-click`` directive over the whole ``geoblock`` group (mkdocs-click
 documents every subcommand, recursively), so a new command is documented by construction;
 these tests keep the directive there and check that every command ``geoblock --help`` lists
-comes out of it.
+comes out of it. The group loads plugin commands lazily, and mkdocs-click reads its loaded
+commands only: the docs build's hook (docs/hooks/click_reference.py, listed in mkdocs.yml)
+loads them first, and so do these tests. Each command's own page is checked by
+tests/test_docs_commands.py.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from pathlib import Path
 
@@ -17,7 +21,18 @@ from click.testing import CliRunner
 
 from geoblock.cli.main import BrokenCommand, build_cli
 
-CLI_MD = Path(__file__).resolve().parents[1] / "docs" / "user-guide" / "cli.md"
+ROOT = Path(__file__).resolve().parents[1]
+CLI_MD = ROOT / "docs" / "user-guide" / "cli.md"
+HOOK = ROOT / "docs" / "hooks" / "click_reference.py"
+
+
+def _run_docs_hook() -> None:
+    """What the docs build does before rendering: docs/hooks/click_reference.py's on_config."""
+    spec = importlib.util.spec_from_file_location("click_reference_hook", HOOK)
+    assert spec is not None and spec.loader is not None
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)
+    hook.on_config({})
 
 
 def _directives(text: str) -> list[dict[str, str]]:
@@ -70,10 +85,17 @@ def test_cli_md_generates_the_reference_of_the_whole_group():
     assert isinstance(geoblock.cli.main.cli, click.Group)
 
 
+def test_the_docs_build_runs_the_hook_that_loads_plugin_commands():
+    config = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    assert re.search(r"^hooks:\n(?:\s+- .*\n)*\s+- docs/hooks/click_reference.py$", config,
+                     re.MULTILINE), "mkdocs.yml must list docs/hooks/click_reference.py in hooks"
+
+
 def test_every_command_in_help_is_in_the_generated_reference():
     pytest.importorskip("mkdocs_click")
     import markdown
 
+    _run_docs_hook()
     html = markdown.markdown(CLI_MD.read_text(encoding="utf-8"),
                              extensions=["attr_list", "toc", "mkdocs-click"])
     documented = set(re.findall(r'<h\d id="(geoblock(?:-[\w-]+)?)"', html))
