@@ -4,8 +4,11 @@
   built-in commands, then the plugins' commands through the ``geoblock_register_commands``
   hook, and turns errors and warnings into one line each on standard error.
 * :mod:`geoblock.cli.options` holds the arguments and options shared by several commands.
-* :mod:`geoblock.cli.plugins`, :mod:`geoblock.cli.info` and :mod:`geoblock.cli.project` are the
-  built-in commands (``plugins``, ``info``, ``project`` and ``backproject``).
+* One module per built-in command: :mod:`~geoblock.cli.plugins`, :mod:`~geoblock.cli.info`,
+  :mod:`~geoblock.cli.project` (``project`` and ``backproject``), :mod:`~geoblock.cli.localize`,
+  :mod:`~geoblock.cli.dem_info`, :mod:`~geoblock.cli.refine`, :mod:`~geoblock.cli.adjust`,
+  :mod:`~geoblock.cli.ortho`, :mod:`~geoblock.cli.mosaic`, :mod:`~geoblock.cli.match`,
+  :mod:`~geoblock.cli.simulate` and :mod:`~geoblock.cli.demo`.
 
 Nothing here opens files itself: paths go to :mod:`geoblock.io`.
 """

@@ -76,8 +76,8 @@ class ImageSource:
         The file's nodata value, if any.
     crop_offset : (float, float) or None
         ``(row0, col0)``: where the image's first pixel lies in a larger scene, when the file
-        says so with a pixel-unit geotransform ``(col0, 1, 0, row0, 0, 1)`` and no CRS (what
-        ``gdal_translate -srcwin`` writes on a raw image; shareloc's Ventoux crops); None
+        says so with a pixel-unit geotransform ``(col0, 1, 0, row0, 0, 1)`` and no CRS (as
+        shareloc's Ventoux crops carry); None
         otherwise (no geotransform, GDAL's default identity one, or a map geotransform).
         :func:`geoblock.models.crop.model_for_image` shifts a full-scene model by it.
     crs : rasterio.crs.CRS or None
@@ -371,7 +371,8 @@ def pixel_crop_offset(transform: Any, crs: Any = None) -> tuple[float, float] | 
 
     A raster without CRS whose geotransform is ``(col0, 1, 0, row0, 0, 1)`` (GDAL order;
     rasterio's ``Affine(1, 0, col0, 0, 1, row0)``) is a window of a larger image starting at
-    pixel ``(row0, col0)`` (``gdal_translate -srcwin`` on a raw image): pixel ``(r, c)`` of the
+    pixel ``(row0, col0)`` (shareloc's crops carry one; GDAL
+    writes none on a raw image): pixel ``(r, c)`` of the
     file is pixel ``(r + row0, c + col0)`` of the scene, pixel centres on both sides. The
     identity (GDAL's default for rasters without geotransform) says nothing and gives None,
     as does any map geotransform or a raster with a geographic or projected CRS.

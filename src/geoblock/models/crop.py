@@ -8,8 +8,9 @@ nothing else changes (a pure shift, exact, no resampling of the geometry).
 
 :func:`model_for_image` reconciles an image with a model wherever the two meet (``geoblock
 ortho``, ``geoblock localize --image``, block files): the crop offset comes from the caller
-(``crop_offset=``) or from the raster itself (a pixel-unit geotransform, as
-``gdal_translate -srcwin`` writes on an image without CRS, read by
+(``crop_offset=``) or from the raster itself (a pixel-unit geotransform: no CRS, pixel size 1,
+origin at the crop's first pixel, as shareloc's crops carry and ``gdal_translate -srcwin``
+keeps from such a source; read by
 :func:`geoblock.io.open_image` into :attr:`ImageSource.crop_offset
 <geoblock.io.images.ImageSource.crop_offset>`); an image whose shape differs from the
 model's with no crop information is refused with both shapes and what to pass, never

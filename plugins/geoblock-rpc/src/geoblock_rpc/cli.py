@@ -264,8 +264,8 @@ def fit_rfm_command(ground_path: str, image_path: str, order: int | str,
 
     GROUND.csv holds the ground points (id, lon, lat in degrees, h in metres above the WGS84
     ellipsoid[, kind gcp|icp]); IMAGE.csv their measurements (id[, image], row, col in
-    pixels with 0 the centre of the first pixel[, sigma | sigma_row, sigma_col][, kind]),
-    joined by id: the point files 'geoblock simulate' writes. GCPs are fitted, ICPs only
+    pixels with 0 the centre of the first pixel; optionally sigma or sigma_row and sigma_col,
+    and kind), joined by id: the point files 'geoblock simulate' writes. GCPs are fitted, ICPs only
     checked. The command prints the fit (order, condition number, regularisation chosen by
     generalised cross-validation), the GCP and ICP residuals in pixels and on the ground
     (RMSE E, N, 2D in metres) and writes the model as JSON, which every geoblock command
