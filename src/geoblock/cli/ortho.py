@@ -99,9 +99,9 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
 
     IMAGE may be a crop of the model's scene (vendor metadata describe the full scene): the
     crop offset is applied when IMAGE states it with a pixel-unit geotransform (no CRS,
-    pixel size 1, origin at the crop's first pixel), or given with --crop-offset ROW COL. An IMAGE whose shape
-    differs from the model's with no crop offset is refused (--no-crop uses the model's pixels
-    as they are).
+    pixel size 1, origin at the crop's first pixel), or given with --crop-offset ROW COL. An
+    IMAGE whose shape differs from the model's with no crop offset is refused (--no-crop uses
+    the model's pixels as they are).
 
     \b
     Examples:
