@@ -70,6 +70,7 @@ LAYERS: dict[str, int] = {
     "geoblock.io.blocks": 5,  # a block file -> adjust.Block
     "geoblock.report": 5,
     "geoblock.simulate": 5,
+    "geoblock.match": 5,  # tie points: images, models, DEM, localize and the ortho's kernels
     "geoblock.testing": 5,
     "geoblock._default_plugin": 5,  # registers core's models, the collocation one among them
     # 6 end-to-end runs

@@ -33,6 +33,7 @@ __all__ = [
     "GridError",
     "InputFileError",
     "InputTypeError",
+    "MatchError",
     "MetadataFieldError",
     "ModelFormatError",
     "MosaicError",
@@ -184,6 +185,12 @@ class InputTypeError(GeoblockError, TypeError):
     path, a ``DemSource``, an open rasterio dataset, a georeferenced ``xarray.DataArray``, or
     a numpy array with its ``transform`` and ``crs``.
     """
+
+
+class MatchError(GeoblockError, ValueError):
+    """Images cannot be matched (``geoblock match``): they do not overlap on the DEM, an image
+    has no keypoints where the others see it, no consistent match survives the tests, or an
+    option is invalid; the message names the image file(s)."""
 
 
 class MosaicError(GeoblockError, ValueError):

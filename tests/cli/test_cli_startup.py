@@ -21,7 +21,7 @@ import geoblock
 #: Libraries ``geoblock --help`` must not import (numba 0.2 s, dask.array 0.6 s, xarray 0.3 s,
 #: scipy.stats 0.6 s, distributed 0.3 s...).
 HEAVY = ("numba", "dask", "xarray", "scipy", "pyproj", "rasterio", "pandas", "matplotlib",
-         "distributed")
+         "distributed", "cv2")
 
 
 def _run(code: str, *, synthetic: bool = False) -> str:
@@ -53,6 +53,7 @@ def test_help_imports_no_heavy_library():
     assert _modules_after_cli(["--help"]) == []
     assert _modules_after_cli(["ortho", "--help"]) == []
     assert _modules_after_cli(["mosaic", "--help"]) == []
+    assert _modules_after_cli(["match", "--help"]) == []
 
 
 def test_opening_a_model_loads_no_adjustment_or_dask(tmp_path):

@@ -250,6 +250,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     from geoblock.cli.demo import demo
     from geoblock.cli.info import info
     from geoblock.cli.localize import localize
+    from geoblock.cli.match import match
     from geoblock.cli.mosaic import mosaic
     from geoblock.cli.ortho import ortho
     from geoblock.cli.plugins import plugins
@@ -294,6 +295,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     cli.add_command(refine)
     cli.add_command(adjust)
     cli.add_command(localize)
+    cli.add_command(match)
     cli.add_command(dem_info)
     cli.add_command(ortho)
     cli.add_command(mosaic)

@@ -1,0 +1,94 @@
+"""Tie points from images, guided by the sensor models: ``geoblock match``.
+
+* :func:`match_images` - tie points between two or more images (:class:`MatchImage`: pixels
+  and model) over a DEM; :func:`match_block` - between the images of a block file;
+* :class:`TiePoints` - the measurements (``id, image, row, col, sigma``, kind ``tp``) with
+  every pair's candidates and why they were rejected (:class:`PairMatches`);
+* the steps: :func:`~geoblock.match.features.detect_keypoints` (SIFT, spread),
+  :func:`~geoblock.match.geometry.predict` (the models' prediction through the DEM and the
+  epipolar direction), :func:`~geoblock.match.consistency.consistent` (the outlier test: a
+  low-order image-space bias plus the height parallax along the epipolar direction),
+  :func:`~geoblock.match.refine.refine_matches` (sub-pixel normalised cross-correlation in the
+  models' local geometry).
+
+OpenCV (``cv2``) and scipy are imported when first used.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from geoblock._lazy import lazy_names
+
+if TYPE_CHECKING:
+    from geoblock.match.consistency import Bias, Consistency, consensus, consistent, fit_bias
+    from geoblock.match.features import Keypoints, detect_keypoints
+    from geoblock.match.geometry import Overlap, Prediction, local_affine, overlap, predict
+    from geoblock.match.pipeline import (
+        DEFAULT_SEARCH_PX,
+        REJECTIONS,
+        MatchImage,
+        MatchOptions,
+        PairMatches,
+        TiePoints,
+        match_block,
+        match_images,
+        write_tie_points,
+    )
+    from geoblock.match.refine import Refined, RefineStatus, refine_matches
+
+_LAZY = {
+    "Bias": "geoblock.match.consistency",
+    "Consistency": "geoblock.match.consistency",
+    "consensus": "geoblock.match.consistency",
+    "consistent": "geoblock.match.consistency",
+    "fit_bias": "geoblock.match.consistency",
+    "Keypoints": "geoblock.match.features",
+    "detect_keypoints": "geoblock.match.features",
+    "Overlap": "geoblock.match.geometry",
+    "Prediction": "geoblock.match.geometry",
+    "local_affine": "geoblock.match.geometry",
+    "overlap": "geoblock.match.geometry",
+    "predict": "geoblock.match.geometry",
+    "DEFAULT_SEARCH_PX": "geoblock.match.pipeline",
+    "REJECTIONS": "geoblock.match.pipeline",
+    "MatchImage": "geoblock.match.pipeline",
+    "MatchOptions": "geoblock.match.pipeline",
+    "PairMatches": "geoblock.match.pipeline",
+    "TiePoints": "geoblock.match.pipeline",
+    "match_block": "geoblock.match.pipeline",
+    "match_images": "geoblock.match.pipeline",
+    "write_tie_points": "geoblock.match.pipeline",
+    "Refined": "geoblock.match.refine",
+    "RefineStatus": "geoblock.match.refine",
+    "refine_matches": "geoblock.match.refine",
+}
+
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)
+
+__all__ = [
+    "Bias",
+    "Consistency",
+    "DEFAULT_SEARCH_PX",
+    "Keypoints",
+    "MatchImage",
+    "MatchOptions",
+    "Overlap",
+    "PairMatches",
+    "Prediction",
+    "REJECTIONS",
+    "RefineStatus",
+    "Refined",
+    "TiePoints",
+    "consensus",
+    "consistent",
+    "detect_keypoints",
+    "fit_bias",
+    "local_affine",
+    "match_block",
+    "match_images",
+    "overlap",
+    "predict",
+    "refine_matches",
+    "write_tie_points",
+]

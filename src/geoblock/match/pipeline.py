@@ -1,0 +1,991 @@
+"""Tie points from images guided by their sensor models: :func:`match_images`, :func:`match_block`.
+
+For every pair of images whose ground overlaps on the DEM (:func:`geoblock.match.geometry.overlap`):
+
+1. **keypoints** - SIFT, spread over each image's part of the overlaps
+   (:func:`~geoblock.match.features.detect_keypoints`);
+2. **prediction** - each keypoint of A on the DEM through A's model, projected into B through
+   B's (:func:`~geoblock.match.geometry.predict`), with its epipolar direction;
+3. **bias** - the strongest, well spread keypoints of A are matched to B's keypoints inside a
+   wide window around the prediction (``search_px``, widened along the epipolar direction by
+   three times the DEM's accuracy), with Lowe's ratio test; the constant offset most of them
+   agree on (:func:`~geoblock.match.consistency.consensus`) starts the robust fit of the
+   models' disagreement, a low-order image-space bias
+   (:func:`~geoblock.match.consistency.consistent`);
+4. **guided matching** - every keypoint of A is matched to B's keypoints inside a narrow
+   window around its bias-corrected prediction, elongated along the epipolar direction by the
+   height parallax the first fit measured; ratio test; one match per keypoint of B;
+5. **sub-pixel refinement** - normalised cross-correlation of A's patch with B resampled in
+   the models' local geometry, then least-squares matching
+   (:func:`~geoblock.match.refine.refine_matches`);
+6. **outlier test** - the refined matches against the bias: the epipolar test (across the
+   epipolar direction: noise only) and the height test (along it: the height parallax),
+   iterated to a fixed point (:mod:`geoblock.match.consistency`);
+7. **tracks** - matches sharing a keypoint are one tie point; a point seen in more than two
+   images gets one id. Each track's first image (in the order given) is its reference: its
+   keypoint is measured as detected and the other images are refined against its patch.
+
+Pixels in the results are those of each image's sensor model as given: for an image that is a
+crop of the model's scene (a pixel-unit geotransform, ``crop_offset=``) the scene's pixels,
+the ones ``geoblock adjust`` reads with the model file a block file names. The method and its
+outlier test are explained in docs/user-guide/match.md.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from geoblock.errors import MatchError
+from geoblock.match.consistency import Bias, consensus, consistent, scale_of, split_residuals
+from geoblock.match.features import Keypoints, detect_keypoints
+from geoblock.match.geometry import (
+    Overlap,
+    Prediction,
+    ground_sample_distance,
+    local_affine,
+    overlap,
+    predict,
+)
+from geoblock.match.refine import RefineStatus, refine_matches
+
+if TYPE_CHECKING:
+    from geoblock.adjust.observations import ImagePoints
+    from geoblock.dem.protocol import DemSource
+    from geoblock.io.images import OpenedImage
+    from geoblock.models.protocol import SensorModel
+
+__all__ = ["DEFAULT_SEARCH_PX", "REJECTIONS", "MatchImage", "MatchOptions", "PairMatches",
+           "TiePoints", "match_block", "match_images", "write_tie_points"]
+
+Progress = Callable[[str], None]
+
+#: Radius of the first pass' search window when the models do not state their accuracy,
+#: pixels of B.
+DEFAULT_SEARCH_PX = 60.0
+#: Smallest first-pass radius, pixels.
+MIN_SEARCH_PX = 10.0
+#: Why a candidate match was rejected, in the order the tests apply.
+REJECTIONS = ("ratio", "unique", "correlation", "epipolar", "height", "track")
+#: Matches needed to estimate the bias between two images.
+MIN_BIAS_MATCHES = 5
+
+
+# ============================================================================== inputs
+@dataclass(frozen=True)
+class MatchOptions:
+    """Options of :func:`match_images`.
+
+    Attributes
+    ----------
+    max_keypoints : int
+        SIFT keypoints kept per image, spread over cells of ``cell_px``.
+    cell_px : int
+        Side of the cells the keypoints are spread over, pixels.
+    contrast_threshold : float
+        SIFT's contrast threshold (OpenCV's default 0.04; lower finds more in flat areas).
+    search_px : float or None
+        Radius of the first pass' window around the prediction, pixels of B: how far the
+        models may disagree. None: three times the combined location accuracy the models
+        state (``location_accuracy_m``), at least 10 px, else :data:`DEFAULT_SEARCH_PX`.
+    dem_sigma_m : float
+        Accuracy of the DEM's heights (1 sigma, metres): the first pass' window extends
+        three times this height parallax along the epipolar direction.
+    ratio : float
+        Lowe's ratio test: the best descriptor distance in the window must be below
+        ``ratio`` times the second best.
+    bias_keypoints : int
+        Keypoints of A (the strongest of each cell) matched in the first pass.
+    candidates : int
+        Nearest keypoints of B examined per keypoint of A in the windows.
+    order : {0, 1, 2}
+        Order of the image-space bias polynomial (0: shift, 1: affine).
+    k : float
+        Rejection threshold of the epipolar and height tests, robust standard deviations.
+    half_px : int
+        Correlation patch half-size, pixels: ``(2 half_px + 1)^2`` patches.
+    refine_search_px : int
+        Largest correction of a keypoint's position by the correlation, pixels.
+    min_score : float
+        Smallest normalised cross-correlation kept.
+    sigma_px : float or None
+        The ``sigma`` written with each measurement, pixels; None: estimated per pair, the
+        robust scale of the kept matches' residuals across the epipolar direction over
+        sqrt(2) (both measurements of a match share it), at least 0.05 px.
+    id_prefix : str
+        Tie-point ids are ``<id_prefix><number>``, numbered in the order of their reference
+        image and position (the same inputs give the same ids).
+    """
+
+    max_keypoints: int = 20000
+    cell_px: int = 128
+    contrast_threshold: float = 0.02
+    search_px: float | None = None
+    dem_sigma_m: float = 10.0
+    ratio: float = 0.8
+    bias_keypoints: int = 1000
+    candidates: int = 64
+    order: int = 1
+    k: float = 3.0
+    half_px: int = 7
+    refine_search_px: int = 3
+    min_score: float = 0.7
+    sigma_px: float | None = None
+    id_prefix: str = "tp"
+
+    def __post_init__(self) -> None:
+        def need(ok: bool, name: str, what: str) -> None:
+            if not ok:
+                raise MatchError(f"match option {name} must be {what}, got "
+                                 f"{getattr(self, name)!r}")
+
+        for name in ("max_keypoints", "cell_px", "bias_keypoints", "candidates"):
+            need(_is_int(getattr(self, name)) and getattr(self, name) >= 1, name,
+                 "an integer >= 1")
+        need(_is_int(self.half_px) and self.half_px >= 2, "half_px", "an integer >= 2")
+        need(_is_int(self.refine_search_px) and self.refine_search_px >= 1, "refine_search_px",
+             "an integer >= 1")
+        need(self.order in (0, 1, 2), "order", "0, 1 or 2")
+        for name in ("contrast_threshold", "dem_sigma_m", "k"):
+            need(_positive(getattr(self, name)), name, "a number > 0")
+        need(self.search_px is None or _positive(self.search_px), "search_px",
+             "a number > 0 (or None)")
+        need(self.sigma_px is None or _positive(self.sigma_px), "sigma_px",
+             "a number > 0 (or None)")
+        need(_positive(self.ratio) and self.ratio <= 1, "ratio", "in (0, 1]")
+        need(math.isfinite(self.min_score) and -1 <= self.min_score <= 1, "min_score",
+             "in [-1, 1]")
+        need(isinstance(self.id_prefix, str) and "," not in self.id_prefix
+             and self.id_prefix.strip() == self.id_prefix, "id_prefix",
+             "a text without commas or surrounding spaces")
+
+    def replace(self, **changes: Any) -> MatchOptions:
+        """A copy with some options changed (checked)."""
+        unknown = sorted(set(changes) - {f.name for f in fields(self)})
+        if unknown:
+            raise MatchError(f"unknown match option(s) {unknown}; options: "
+                             f"{', '.join(f.name for f in fields(self))}")
+        return replace(self, **changes)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _positive(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) \
+        and math.isfinite(value) and value > 0
+
+
+@dataclass(frozen=True, eq=False)
+class MatchImage:
+    """An image to match: its pixels and the model that addresses them.
+
+    Attributes
+    ----------
+    id : str
+        The image's name in the ``image`` column of the measurements.
+    image : ImageSource or ArrayImage
+        The pixels (:func:`geoblock.io.open_image`); the first band is matched.
+    model : SensorModel
+        The model of the image's pixels (the given model, shifted when the image is a crop of
+        its scene).
+    offset : (float, float)
+        Added to the image's pixels to give the pixels of the model as given (the crop's
+        offset in the scene; ``(0, 0)`` otherwise).
+    """
+
+    id: str
+    image: OpenedImage
+    model: SensorModel
+    offset: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def name(self) -> str:
+        """The image's file (or name) for messages."""
+        return str(getattr(self.image, "path", self.id))
+
+    @classmethod
+    def from_files(cls, image_id: str, image: Any, model: Any = None, *,
+             crop_offset: tuple[float, float] | None = None, crop: bool = True) -> MatchImage:
+        """Open an image and its model and reconcile them.
+
+        Parameters
+        ----------
+        image_id : str
+        image : path or anything :func:`geoblock.io.open_image` accepts
+        model : SensorModel, path or None
+            The model, or its file (:func:`geoblock.open_model`); None: the model stored in
+            the image file (e.g. its GeoTIFF RPC tags), as ``geoblock ortho`` finds it.
+        crop_offset : (float, float), optional
+            The scene pixel of the image's first pixel, when the image is a crop of the
+            model's scene and does not say so itself (a pixel-unit geotransform).
+        crop : bool
+            False: take the image's pixels as the model's, whatever the shapes.
+
+        Raises
+        ------
+        CropError
+            The image does not fit the model (shapes differ with no crop offset, or the crop
+            lies outside the scene); the message names the image.
+        GeoblockError
+            The image or the model cannot be read (names the file).
+        """
+        from geoblock.io.images import open_image
+        from geoblock.io.models import open_model
+        from geoblock.models.crop import CroppedModel, model_for_image
+
+        source = open_image(image)
+        given = open_model(source.path) if model is None else (
+            open_model(model) if isinstance(model, str | os.PathLike) else model)
+        fitted = model_for_image(given, source, crop_offset=crop_offset, crop=crop)
+        offset = (0.0, 0.0)
+        if fitted is not given and isinstance(fitted, CroppedModel):
+            base = given.offset if isinstance(given, CroppedModel) else (0.0, 0.0)
+            offset = (fitted.offset[0] - base[0], fitted.offset[1] - base[1])
+        return cls(str(image_id), source, fitted, offset)
+
+
+# ============================================================================== results
+@dataclass(frozen=True, eq=False)
+class PairMatches:
+    """The matching of one pair of images (A, B): every candidate and its fate.
+
+    The arrays have one entry per candidate: a keypoint of A with at least one keypoint of B
+    inside its window. Pixels are each image's own (the rasters'); :class:`TiePoints` has the
+    models' pixels.
+
+    Attributes
+    ----------
+    image_a, image_b : str
+        Image ids.
+    keypoints_a, keypoints_b : int
+        Keypoints of A in the overlap with B, and of B in its part of it.
+    predicted : int
+        Keypoints of A whose prediction falls inside B.
+    index_a, index_b : ndarray of int, (N,)
+        The keypoints (of each image's :class:`~geoblock.match.features.Keypoints`).
+    row_a, col_a : ndarray, (N,)
+        A's keypoint, pixels.
+    row_b, col_b : ndarray, (N,)
+        The match in B after refinement (B's keypoint where the refinement failed), pixels.
+    pred_row, pred_col : ndarray, (N,)
+        The models' prediction in B, pixels.
+    ratio : ndarray, (N,)
+        Best over second-best descriptor distance in the window (0 with one candidate).
+    score : ndarray, (N,)
+        Normalised cross-correlation of the refinement (NaN when not refined).
+    perp : ndarray, (N,)
+        Residual across the epipolar direction after the bias, pixels.
+    height_m : ndarray, (N,)
+        Residual along it as a height, metres.
+    status : ndarray of str, (N,)
+        ``kept`` or the test that rejected the candidate (:data:`REJECTIONS`).
+    bias : Bias
+        The models' disagreement fitted to the kept matches (B minus prediction, pixels of B
+        as a polynomial of A's pixels).
+    sigma_px : float
+        Robust scale of the kept matches' ``perp``, pixels.
+    sigma_h_m : float
+        Robust scale of their height parallax, metres.
+    search_px : float
+        The first pass' window radius used, pixels.
+    seconds : float
+    """
+
+    image_a: str
+    image_b: str
+    keypoints_a: int
+    keypoints_b: int
+    predicted: int
+    index_a: np.ndarray
+    index_b: np.ndarray
+    row_a: np.ndarray
+    col_a: np.ndarray
+    row_b: np.ndarray
+    col_b: np.ndarray
+    pred_row: np.ndarray
+    pred_col: np.ndarray
+    ratio: np.ndarray
+    score: np.ndarray
+    perp: np.ndarray
+    height_m: np.ndarray
+    status: np.ndarray
+    bias: Bias
+    sigma_px: float
+    sigma_h_m: float
+    search_px: float
+    seconds: float
+
+    @property
+    def kept(self) -> np.ndarray:
+        """Mask of the kept matches, (N,)."""
+        return self.status == "kept"
+
+    def counts(self) -> dict[str, int]:
+        """Candidates, kept, and rejected per test."""
+        out = {"candidates": int(self.status.size), "kept": int(self.kept.sum())}
+        out.update({name: int((self.status == name).sum()) for name in REJECTIONS})
+        return out
+
+    def summary(self) -> str:
+        """One line: keypoints, candidates, kept, rejections, the bias and the scales."""
+        c = self.counts()
+        rejected = ", ".join(f"{name} {c[name]}" for name in REJECTIONS if c[name])
+        shift = self.bias.coefficients[:, 0]
+        return (f"{self.image_a} & {self.image_b}: {self.keypoints_a} + {self.keypoints_b} "
+                f"keypoints, {c['candidates']} candidates, {c['kept']} kept"
+                f" (rejected: {rejected or 'none'}); models' offset {shift[0]:+.2f}, "
+                f"{shift[1]:+.2f} px (row, col), scatter {self.sigma_px:.2f} px across the "
+                f"epipolar direction, {self.sigma_h_m:.1f} m in height; {self.seconds:.1f} s")
+
+
+@dataclass(frozen=True, eq=False)
+class TiePoints:
+    """Tie points measured in images: one row per measurement.
+
+    Attributes
+    ----------
+    id : ndarray of str, (M,)
+        Tie-point id; a point measured in more than two images has one id.
+    image : ndarray of str, (M,)
+        Image id.
+    row, col : ndarray, (M,)
+        Pixels of the image's model as given (the scene's for a crop).
+    sigma : ndarray, (M,)
+        Measurement standard deviation, pixels.
+    pairs : tuple of PairMatches
+    images : tuple of str
+        The image ids, in the order given.
+    keypoints : mapping of str to int
+        Keypoints detected per image.
+    dropped_tracks : int
+        Tracks dropped: they joined two keypoints of one image.
+    seconds : float
+        Wall-clock time of the whole matching.
+    offsets : mapping of str to (float, float)
+        Per image, what was added to the raster's pixels to give the model's
+        (:attr:`MatchImage.offset`).
+    """
+
+    id: np.ndarray
+    image: np.ndarray
+    row: np.ndarray
+    col: np.ndarray
+    sigma: np.ndarray
+    pairs: tuple[PairMatches, ...]
+    images: tuple[str, ...]
+    keypoints: Mapping[str, int]
+    dropped_tracks: int
+    seconds: float
+    offsets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.id.size)
+
+    @property
+    def n_points(self) -> int:
+        """Number of tie points (distinct ids)."""
+        return int(np.unique(self.id).size)
+
+    def to_columns(self) -> dict[str, np.ndarray]:
+        """The image-measurement columns ``id, image, row, col, sigma, kind`` (``tp``) that
+        :func:`geoblock.io.write_points` writes and ``geoblock adjust`` reads."""
+        return {"id": self.id, "image": self.image, "row": self.row, "col": self.col,
+                "sigma": self.sigma, "kind": np.full(self.id.size, "tp")}
+
+    def image_points(self) -> ImagePoints:
+        """The measurements as :class:`geoblock.adjust.ImagePoints` (kind ``tp``)."""
+        from geoblock.adjust.observations import ImagePoints
+
+        return ImagePoints.from_columns(self.to_columns(), source="geoblock match")
+
+    def diagnostics(self) -> dict[str, np.ndarray]:
+        """Every candidate of every pair: ``pair, image_a, image_b, row_a, col_a, row_b,
+        col_b`` (the models' pixels), ``pred_row, pred_col`` (the models' prediction in B,
+        before the bias), ``offset_row, offset_col`` (match minus prediction), ``ratio,
+        score, perp_px, height_m, status``."""
+        parts: dict[str, list[np.ndarray]] = {}
+        for p in self.pairs:
+            oa = self.offsets.get(p.image_a, (0.0, 0.0))
+            ob = self.offsets.get(p.image_b, (0.0, 0.0))
+            n = p.status.size
+            cols = {
+                "pair": np.full(n, f"{p.image_a}&{p.image_b}"),
+                "image_a": np.full(n, p.image_a), "image_b": np.full(n, p.image_b),
+                "row_a": p.row_a + oa[0], "col_a": p.col_a + oa[1],
+                "row_b": p.row_b + ob[0], "col_b": p.col_b + ob[1],
+                "pred_row": p.pred_row + ob[0], "pred_col": p.pred_col + ob[1],
+                "offset_row": p.row_b - p.pred_row, "offset_col": p.col_b - p.pred_col,
+                "ratio": p.ratio, "score": p.score, "perp_px": p.perp,
+                "height_m": p.height_m, "status": p.status,
+            }
+            for key, value in cols.items():
+                parts.setdefault(key, []).append(np.asarray(value))
+        return {k: np.concatenate(v) for k, v in parts.items()} if parts else {}
+
+    def counts(self) -> dict[str, int]:
+        """Candidates, kept and rejected per test, summed over the pairs."""
+        total: dict[str, int] = {}
+        for p in self.pairs:
+            for key, value in p.counts().items():
+                total[key] = total.get(key, 0) + value
+        return total
+
+    def summary(self) -> str:
+        """One line: points, measurements, keypoints, candidates, kept, rejections,
+        matches per second."""
+        c = self.counts()
+        rejected = ", ".join(f"{name} {c.get(name, 0)}" for name in REJECTIONS
+                             if c.get(name, 0))
+        kp = sum(self.keypoints.values())
+        rate = c.get("kept", 0) / self.seconds if self.seconds > 0 else math.inf
+        return (f"{self.n_points} tie points, {len(self)} measurements in {len(self.images)} "
+                f"images from {len(self.pairs)} pair(s): {kp} keypoints, "
+                f"{c.get('candidates', 0)} candidates, {c.get('kept', 0)} matches kept "
+                f"(rejected: {rejected or 'none'}); {rate:.0f} matches/s "
+                f"({self.seconds:.1f} s)")
+
+
+# ============================================================================== one pair
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """An image ready for matching: keypoints and pixels of the part that overlaps others."""
+
+    im: MatchImage
+    keypoints: Keypoints
+    pixels: np.ndarray  # float64, NaN = nodata
+    origin: tuple[int, int]  # image pixel of pixels[0, 0]
+
+
+def _read_pixels(image: OpenedImage, window: tuple[int, int, int, int]) -> np.ndarray:
+    data = image.read(window)[0].astype(np.float64)
+    nodata = image.nodata
+    if nodata is not None and math.isfinite(nodata):
+        data[data == nodata] = np.nan
+    return data
+
+
+def _union(windows: Sequence[tuple[int, int, int, int]]) -> tuple[int, int, int, int]:
+    return (min(w[0] for w in windows), max(w[1] for w in windows),
+            min(w[2] for w in windows), max(w[3] for w in windows))
+
+
+def _pad(window: tuple[int, int, int, int], pad: float, shape: tuple[int, int]
+         ) -> tuple[int, int, int, int]:
+    p = int(math.ceil(pad))
+    return (max(0, window[0] - p), min(shape[0], window[1] + p),
+            max(0, window[2] - p), min(shape[1], window[3] + p))
+
+
+def _inside_window(kp: Keypoints, window: tuple[int, int, int, int]) -> np.ndarray:
+    return ((kp.row >= window[0]) & (kp.row <= window[1] - 1)
+            & (kp.col >= window[2]) & (kp.col <= window[3] - 1))
+
+
+def _accuracy_m(model: SensorModel) -> float | None:
+    """The location accuracy a model states (``location_accuracy_m``; a crop's scene's)."""
+    inner = getattr(model, "model", model)
+    for m in (model, inner):
+        value = getattr(m, "location_accuracy_m", None)
+        if isinstance(value, int | float) and math.isfinite(value) and value > 0:
+            return float(value)
+    return None
+
+
+def _search_px(a: MatchImage, b: MatchImage, lap: Overlap, options: MatchOptions) -> float:
+    """The first pass' window radius in B, pixels (:attr:`MatchOptions.search_px`)."""
+    if options.search_px is not None:
+        return float(options.search_px)
+    acc = (_accuracy_m(a.model), _accuracy_m(b.model))
+    gsd = ground_sample_distance(b.model, *lap.centre_b, lap.height_m)
+    if acc[0] is None or acc[1] is None or not (math.isfinite(gsd) and gsd > 0):
+        return DEFAULT_SEARCH_PX
+    return max(3.0 * math.hypot(acc[0], acc[1]) / gsd, MIN_SEARCH_PX)
+
+
+def _nearest_descriptors(desc_a: np.ndarray, desc_b: np.ndarray, cand: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row of ``cand`` (indices into B, -1 for none): the best candidate, the best and
+    second-best descriptor distances (inf where missing)."""
+    n, k = cand.shape
+    best = np.full(n, -1, np.intp)
+    d1 = np.full(n, np.inf)
+    d2 = np.full(n, np.inf)
+    if n == 0 or k == 0:
+        return best, d1, d2
+    step = max(1, (1 << 16) // k)
+    for start in range(0, n, step):  # chunks of points, each vectorised (memory bound)
+        sl = slice(start, min(start + step, n))
+        c = cand[sl]
+        diff = desc_b[np.maximum(c, 0)] - desc_a[sl, None, :]
+        dist = np.sqrt(np.einsum("nkd,nkd->nk", diff, diff, dtype=np.float64))
+        dist[c < 0] = np.inf
+        order = np.argsort(dist, axis=1)[:, :2]
+        rows = np.arange(c.shape[0])
+        best[sl] = np.where(np.isfinite(dist[rows, order[:, 0]]), c[rows, order[:, 0]], -1)
+        d1[sl] = dist[rows, order[:, 0]]
+        d2[sl] = dist[rows, order[:, 1]] if k > 1 else np.inf
+    return best, d1, d2
+
+
+def _window_candidates(tree: Any, kp_b: Keypoints, pred_row: np.ndarray, pred_col: np.ndarray,
+                       epi_row: np.ndarray, epi_col: np.ndarray, r_perp: np.ndarray,
+                       r_par: np.ndarray, k: int) -> np.ndarray:
+    """Indices of B's keypoints (up to ``k`` nearest, -1 for none) inside each window: at most
+    ``r_perp`` across the epipolar direction and ``r_par`` along it from the prediction."""
+    n = pred_row.size
+    nb = len(kp_b)
+    if n == 0 or nb == 0:
+        return np.full((n, 0), -1, np.intp)
+    k = min(k, nb)
+    radius = float(np.max(np.hypot(r_perp, r_par)))
+    _, idx = tree.query(np.column_stack([pred_row, pred_col]), k=k,
+                        distance_upper_bound=radius)
+    idx = np.asarray(idx).reshape(n, k)
+    found = idx < nb
+    safe = np.where(found, idx, 0)
+    perp, par, _ = split_residuals(kp_b.row[safe] - pred_row[:, None],
+                                   kp_b.col[safe] - pred_col[:, None],
+                                   epi_row[:, None], epi_col[:, None])
+    inside = found & (np.abs(perp) <= r_perp[:, None]) & (np.abs(par) <= r_par[:, None])
+    return np.where(inside, idx, -1)
+
+
+def _first_of_groups(key: np.ndarray, score: np.ndarray) -> np.ndarray:
+    """Mask of the entry with the smallest ``score`` per value of ``key``."""
+    if not key.size:
+        return np.zeros(0, bool)
+    order = np.lexsort((score, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    keep = np.zeros(key.size, bool)
+    keep[order[first]] = True
+    return keep
+
+
+def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search: float,
+                options: MatchOptions, progress: Progress) -> PairMatches:
+    """Match one pair of prepared images (steps 2-6 of the module docstring), with the first
+    pass' window radius ``search`` (pixels of B); the result's arrays are in each image's own
+    pixels.
+
+    Raises
+    ------
+    MatchError
+        No keypoint of A is predicted inside B, or no consistent bias can be found (names
+        both files and what to try).
+    """
+    from scipy.spatial import cKDTree
+
+    say = progress
+    start_time = time.perf_counter()
+    names = f"{a.im.name} and {b.im.name}"
+    if lap.window_a is None:
+        raise MatchError(f"{names}: the images do not overlap on the DEM")
+    in_a = np.flatnonzero(_inside_window(a.keypoints, lap.window_a))
+    kp_a = a.keypoints.subset(in_a)
+    kp_b = b.keypoints
+    if not len(kp_a) or not len(kp_b):
+        empty = a.im.name if not len(kp_a) else b.im.name
+        raise MatchError(f"{empty}: no SIFT keypoint where {names} overlap (a flat, "
+                         "saturated or nodata area?); try a lower contrast threshold")
+    pred = predict(a.im.model, b.im.model, dem, kp_a.row, kp_a.col)
+    ok = np.flatnonzero(pred.ok)
+    if not ok.size:
+        raise MatchError(f"{names}: no keypoint of the first is predicted inside the second "
+                         "(through the models and the DEM): do they overlap?")
+    kp_a = kp_a.subset(ok)
+    in_a = in_a[ok]
+    pred = Prediction(pred.row[ok], pred.col[ok], pred.h[ok], pred.epi_row[ok],
+                      pred.epi_col[ok], pred.ok[ok])
+    centre, scale = scale_of(a.im.model.shape)
+    norm = pred.epipolar_norm
+    tree = cKDTree(np.column_stack([kp_b.row, kp_b.col]))
+
+    # --- first pass: the bias, from the strongest keypoints of every cell, wide windows
+    order = np.argsort(kp_a.rank, kind="stable")[:options.bias_keypoints]
+    h_tol = 3.0 * options.dem_sigma_m
+    r_perp = np.full(order.size, search)
+    r_par = search + h_tol * norm[order]
+    cand = _window_candidates(tree, kp_b, pred.row[order], pred.col[order],
+                              pred.epi_row[order], pred.epi_col[order], r_perp, r_par,
+                              max(options.candidates, 256))
+    best, d1, d2 = _nearest_descriptors(kp_a.descriptors[order], kp_b.descriptors, cand)
+    passed = (best >= 0) & (d1 < options.ratio * d2)
+    sel = order[passed]
+    bb = best[passed]
+    d_row = kp_b.row[bb] - pred.row[sel]
+    d_col = kp_b.col[bb] - pred.col[sel]
+    agree = consensus(d_row, d_col, pred.epi_row[sel], pred.epi_col[sel], tolerance_px=3.0,
+                      height_tolerance_m=h_tol)
+    if agree.sum() < MIN_BIAS_MATCHES:
+        raise MatchError(
+            f"{names}: no consistent offset between the images within {search:.0f} px of the "
+            f"models' prediction ({int(agree.sum())} matches agree, {MIN_BIAS_MATCHES} "
+            "needed): the models may disagree by more (give a larger search radius), the "
+            "images may not overlap, or their content may differ (clouds, seasons)")
+    # SIFT's positions agree within a pixel or so, the DEM within a few times its accuracy
+    first = consistent(kp_a.row[sel], kp_a.col[sel], d_row, d_col, pred.epi_row[sel],
+                       pred.epi_col[sel], agree, order=options.order, k=options.k,
+                       min_sigma_px=0.3, max_sigma_px=1.0, sigma_px=1.0,
+                       sigma_h_m=options.dem_sigma_m, max_sigma_h_m=2 * options.dem_sigma_m,
+                       centre=centre, scale=scale)
+    say(f"  {a.im.id} & {b.im.id}: models' offset {first.bias.coefficients[0, 0]:+.1f}, "
+        f"{first.bias.coefficients[1, 0]:+.1f} px from {int(first.inlier.sum())} of "
+        f"{sel.size} first-pass matches (window {search:.0f} px)")
+
+    # --- second pass: every keypoint, narrow windows around the corrected prediction
+    br, bc = first.bias(kp_a.row, kp_a.col)
+    row_p = pred.row + br
+    col_p = pred.col + bc
+    tol_perp = max(options.k * first.sigma_px, 1.5)
+    r_perp = np.full(len(kp_a), tol_perp)
+    r_par = options.k * np.sqrt(first.sigma_px**2 + (first.sigma_h_m * norm) ** 2)
+    r_par = np.maximum(r_par, tol_perp)
+    cand = _window_candidates(tree, kp_b, row_p, col_p, pred.epi_row, pred.epi_col, r_perp,
+                              r_par, options.candidates)
+    has = (cand >= 0).any(axis=1)
+    idx = np.flatnonzero(has)
+    best, d1, d2 = _nearest_descriptors(kp_a.descriptors[idx], kp_b.descriptors, cand[idx])
+    n = idx.size
+    status = np.full(n, "kept", dtype="<U11")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isfinite(d2), d1 / d2, 0.0)
+    status[~(ratio < options.ratio)] = "ratio"
+    # one match per keypoint of B, and per position of A (SIFT gives a keypoint one entry per
+    # dominant orientation): the closest descriptor wins
+    live = status == "kept"
+    pos_a = np.round(kp_a.row[idx] * 100) * 1e7 + np.round(kp_a.col[idx] * 100)
+    for key in (best, pos_a):
+        won = np.zeros(n, bool)
+        won[live] = _first_of_groups(key[live], d1[live])
+        status[live & ~won] = "unique"
+        live = status == "kept"
+
+    # --- sub-pixel refinement
+    ra, ca = kp_a.row[idx], kp_a.col[idx]
+    rb, cb = kp_b.row[np.maximum(best, 0)], kp_b.col[np.maximum(best, 0)]
+    row_b, col_b = rb.copy(), cb.copy()
+    score = np.full(n, np.nan)
+    live_i = np.flatnonzero(live)
+    if live_i.size:
+        jac = local_affine(a.im.model, b.im.model, dem, ra[live_i], ca[live_i])
+        ref = refine_matches(a.pixels, b.pixels, ra[live_i] - a.origin[0],
+                             ca[live_i] - a.origin[1], rb[live_i] - b.origin[0],
+                             cb[live_i] - b.origin[1], jac, half_px=options.half_px,
+                             search_px=options.refine_search_px, min_score=options.min_score)
+        row_b[live_i] = ref.row + b.origin[0]
+        col_b[live_i] = ref.col + b.origin[1]
+        score[live_i] = ref.score
+        status[live_i[ref.status != RefineStatus.CONVERGED]] = "correlation"
+
+    # --- outlier test on the refined matches
+    live = status == "kept"
+    d_row = row_b - pred.row[idx]
+    d_col = col_b - pred.col[idx]
+    perp = np.full(n, np.nan)
+    height = np.full(n, np.nan)
+    bias, s_p, s_h = first.bias, first.sigma_px, first.sigma_h_m
+    # start from the matches the first pass' bias and scales accept; the refined positions
+    # can only be closer than SIFT's: the first pass' scales are the ceilings
+    br, bc = first.bias(ra, ca)
+    perp0, par0, norm0 = split_residuals(d_row - br, d_col - bc, pred.epi_row[idx],
+                                         pred.epi_col[idx])
+    start = live & (np.abs(perp0) <= options.k * first.sigma_px) & (
+        np.abs(par0) <= options.k * np.hypot(first.sigma_px, first.sigma_h_m * norm0))
+    if start.sum() >= MIN_BIAS_MATCHES:
+        final = consistent(ra, ca, d_row, d_col, pred.epi_row[idx], pred.epi_col[idx], start,
+                           order=options.order, k=options.k, sigma_px=first.sigma_px,
+                           sigma_h_m=first.sigma_h_m, max_sigma_px=min(first.sigma_px, 0.5),
+                           max_sigma_h_m=first.sigma_h_m, centre=centre, scale=scale)
+        status[live & final.epipolar] = "epipolar"
+        status[live & final.height] = "height"
+        perp, height = final.perp, final.height_m
+        bias, s_p, s_h = final.bias, final.sigma_px, final.sigma_h_m
+    else:
+        status[live] = "epipolar"  # too few to test: none is trusted
+    return PairMatches(
+        a.im.id, b.im.id, len(kp_a), len(kp_b), int(pred.ok.sum()), in_a[idx],
+        np.where(best >= 0, best, -1), ra, ca, row_b, col_b, pred.row[idx], pred.col[idx],
+        ratio, score, perp, height, status, bias, s_p, s_h, search,
+        time.perf_counter() - start_time)
+
+
+# ============================================================================== N images
+def _pairs(images: Sequence[MatchImage], dem: DemSource, progress: Progress
+           ) -> list[tuple[int, int, Overlap]]:
+    pairs = []
+    for i in range(len(images)):
+        for j in range(i + 1, len(images)):
+            lap = overlap(images[i].model, images[j].model, dem)
+            if lap.fraction > 0:
+                progress(f"  {images[i].id} & {images[j].id}: {100 * lap.fraction:.0f} % of "
+                         f"{images[i].id} overlaps {images[j].id}")
+                pairs.append((i, j, lap))
+    return pairs
+
+
+def _tracks(images: Sequence[MatchImage], prepared: Sequence[_Prepared],
+            results: Sequence[PairMatches], pair_index: Sequence[tuple[int, int]],
+            dem: DemSource, options: MatchOptions, sigmas: Sequence[float]
+            ) -> tuple[dict[str, np.ndarray], int]:
+    """Join the kept matches of every pair into tracks (module docstring, step 7)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    sizes = [len(p.keypoints) for p in prepared]
+    base = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+    total = int(base[-1])
+    link_a, link_b, link_rb, link_cb, link_sigma = [], [], [], [], []
+    for (i, j), res, s in zip(pair_index, results, sigmas, strict=True):
+        kept = res.kept
+        link_a.append(base[i] + res.index_a[kept])
+        link_b.append(base[j] + res.index_b[kept])
+        link_rb.append(res.row_b[kept])
+        link_cb.append(res.col_b[kept])
+        link_sigma.append(np.full(int(kept.sum()), s))
+    la, lb = np.concatenate(link_a), np.concatenate(link_b)
+    lrb, lcb, lsig = (np.concatenate(v) for v in (link_rb, link_cb, link_sigma))
+    graph = coo_matrix((np.ones(la.size), (la, lb)), shape=(total, total))
+    _, label = connected_components(graph, directed=False)
+    image_of = np.repeat(np.arange(len(sizes)), sizes)
+    in_track = np.zeros(total, bool)
+    in_track[la] = in_track[lb] = True
+    nodes = np.flatnonzero(in_track)
+    comp = label[nodes]
+    # a track with two keypoints of one image is inconsistent: dropped
+    pair_key = comp.astype(np.int64) * len(sizes) + image_of[nodes]
+    uniq, counts = np.unique(pair_key, return_counts=True)
+    bad_comp = np.unique(uniq[counts > 1] // len(sizes))
+    good = ~np.isin(comp, bad_comp)
+    nodes, comp = nodes[good], comp[good]
+    # the reference of a track: its node in the first image (nodes are sorted by image)
+    order = np.lexsort((image_of[nodes], comp))
+    nodes, comp = nodes[order], comp[order]
+    is_ref = np.r_[True, comp[1:] != comp[:-1]]
+    ref_node = nodes[is_ref][np.cumsum(is_ref) - 1]
+    # positions: the reference's keypoint; others from the link with the reference, if any
+    kp_row = np.concatenate([p.keypoints.row for p in prepared])
+    kp_col = np.concatenate([p.keypoints.col for p in prepared])
+    row = kp_row[nodes].copy()
+    col = kp_col[nodes].copy()
+    sigma = np.zeros(nodes.size)
+    link_key = la.astype(np.int64) * total + lb
+    node_key = ref_node.astype(np.int64) * total + nodes
+    sort = np.argsort(link_key)
+    pos = np.searchsorted(link_key[sort], node_key)
+    pos = np.minimum(pos, link_key.size - 1)
+    direct = link_key[sort][pos] == node_key
+    row[direct] = lrb[sort][pos[direct]]
+    col[direct] = lcb[sort][pos[direct]]
+    sigma[direct] = lsig[sort][pos[direct]]
+    # nodes linked to the reference only through others: refined against it now
+    keep = np.ones(nodes.size, bool)
+    indirect = ~direct & ~is_ref
+    if indirect.any():
+        ref_img, node_img = image_of[ref_node], image_of[nodes]
+        for i, j in sorted(set(zip(ref_img[indirect].tolist(), node_img[indirect].tolist(),
+                                   strict=True))):  # per pair of images
+            sel = np.flatnonzero(indirect & (ref_img == i) & (node_img == j))
+            pa, pb = prepared[i], prepared[j]
+            ra, ca = kp_row[ref_node[sel]], kp_col[ref_node[sel]]
+            jac = local_affine(pa.im.model, pb.im.model, dem, ra, ca)
+            ref = refine_matches(pa.pixels, pb.pixels, ra - pa.origin[0], ca - pa.origin[1],
+                                 row[sel] - pb.origin[0], col[sel] - pb.origin[1], jac,
+                                 half_px=options.half_px, search_px=options.refine_search_px,
+                                 min_score=options.min_score)
+            good_ref = ref.status == RefineStatus.CONVERGED
+            row[sel] = ref.row + pb.origin[0]
+            col[sel] = ref.col + pb.origin[1]
+            keep[sel[~good_ref]] = False
+            sigma[sel] = float(np.max(sigmas))
+    # tracks left with fewer than two measurements are dropped
+    kept_comp = comp[keep]
+    uniq, counts = np.unique(kept_comp, return_counts=True)
+    keep &= np.isin(comp, uniq[counts >= 2])
+    nodes, comp, is_ref = nodes[keep], comp[keep], is_ref[keep]
+    row, col, sigma = row[keep], col[keep], sigma[keep]
+    # the track's sigma: the largest of its measurements'; ids in the order of the
+    # reference image and position
+    track_sigma = np.zeros(int(label.max()) + 1 if label.size else 0)
+    np.maximum.at(track_sigma, comp, sigma)
+    ref_rank = np.lexsort((kp_col[nodes][is_ref], kp_row[nodes][is_ref],
+                           image_of[nodes][is_ref]))
+    number = np.empty(int(label.max()) + 1 if label.size else 0, np.intp)
+    number[comp[is_ref][ref_rank]] = np.arange(ref_rank.size)
+    width = max(5, len(str(max(ref_rank.size, 1))))
+    ids = np.char.add(options.id_prefix, np.char.zfill(number[comp].astype(str), width))
+    img = image_of[nodes]
+    offset = np.array([im.offset for im in images], dtype=float).reshape(-1, 2)
+    out = {"id": ids, "image": np.array([im.id for im in images], dtype=str)[img],
+           "row": row + offset[img, 0], "col": col + offset[img, 1],
+           "sigma": track_sigma[comp], "_order": np.lexsort((img, number[comp]))}
+    return out, int(bad_comp.size)
+
+
+def match_images(images: Sequence[MatchImage], dem: DemSource, *,
+                 options: MatchOptions | None = None,
+                 progress: Progress | None = None) -> TiePoints:
+    """Tie points between images, guided by their sensor models and a DEM.
+
+    Parameters
+    ----------
+    images : sequence of MatchImage
+        Two or more images with their models (:meth:`MatchImage.from_files`); the first of a
+        track's images is its reference.
+    dem : DemSource
+        Heights above the ellipsoid (:func:`geoblock.open_dem`).
+    options : MatchOptions, optional
+    progress : callable, optional
+        Called with one-line messages (overlaps, keypoints, each pair's outcome).
+
+    Returns
+    -------
+    TiePoints
+        Measurements sorted by id then image (in the order given).
+
+    Raises
+    ------
+    MatchError
+        Fewer than two images, duplicate ids, no pair overlaps, an image without keypoints
+        where it overlaps another, or a pair without a consistent bias (the message names the
+        files).
+
+    Examples
+    --------
+    >>> import geoblock
+    >>> from geoblock.match import MatchImage, match_images
+    >>> images = [MatchImage.from_files("left", "left.tif", "left.geom"),
+    ...           MatchImage.from_files("right", "right.tif", "right.geom")]  # doctest: +SKIP
+    >>> tps = match_images(images, geoblock.open_dem("N44E005.hgt"))  # doctest: +SKIP
+    >>> geoblock.io.write_points("tp.csv", tps.to_columns())  # doctest: +SKIP
+    """
+    start = time.perf_counter()
+    options = options or MatchOptions()
+    say = progress or (lambda message: None)
+    images = list(images)
+    if len(images) < 2:
+        raise MatchError(f"matching needs at least two images, got {len(images)}")
+    ids = [im.id for im in images]
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise MatchError(f"duplicate image id(s) {dup}: each image needs its own id")
+    say(f"overlaps of {len(images)} images on the DEM")
+    pairs = _pairs(images, dem, say)
+    if not pairs:
+        names = ", ".join(im.name for im in images)
+        raise MatchError(f"no two of the images overlap on the DEM ({names}): check the "
+                         "models, the DEM and that the images show the same area")
+    searches = [_search_px(images[i], images[j], lap, options) for i, j, lap in pairs]
+    prepared = []
+    pad = 2 * (options.half_px + options.refine_search_px + 4)  # the correlation's patches
+    for k, im in enumerate(images):
+        shape = (int(im.image.shape[0]), int(im.image.shape[1]))
+        boxes = [_pad(lap.window_a, pad, shape) for i, _, lap in pairs
+                 if i == k and lap.window_a is not None]
+        # B's side: where the models put it, give or take the first pass' window
+        boxes += [_pad(lap.window_b, pad + r, shape) for (_, j, lap), r in zip(pairs, searches,
+                                                                            strict=True)
+                  if j == k and lap.window_b is not None]
+        if not boxes:
+            prepared.append(_Prepared(im, Keypoints.empty(), np.zeros((0, 0)), (0, 0)))
+            continue
+        window = _union(boxes)
+        kp = detect_keypoints(im.image, window, max_keypoints=options.max_keypoints,
+                              cell_px=options.cell_px,
+                              contrast_threshold=options.contrast_threshold)
+        if not len(kp):
+            raise MatchError(f"{im.name}: no SIFT keypoint found in its overlap with the "
+                             "other images (a flat, saturated or nodata area?)")
+        say(f"  {im.id}: {len(kp)} keypoints in rows {window[0]}-{window[1]}, cols "
+            f"{window[2]}-{window[3]}")
+        prepared.append(_Prepared(im, kp, _read_pixels(im.image, window),
+                                  (window[0], window[2])))
+    results, sigmas = [], []
+    for (i, j, lap), search in zip(pairs, searches, strict=True):
+        res = _match_pair(prepared[i], prepared[j], dem, lap, search, options, say)
+        say("  " + res.summary())
+        results.append(res)
+        sigmas.append(options.sigma_px if options.sigma_px is not None
+                      else max(res.sigma_px / math.sqrt(2.0), 0.05))
+    columns, dropped = _tracks(images, prepared, results, [(i, j) for i, j, _ in pairs], dem,
+                               options, sigmas)
+    order = columns.pop("_order")
+    columns = {k: v[order] for k, v in columns.items()}
+    return TiePoints(columns["id"], columns["image"], columns["row"], columns["col"],
+                     columns["sigma"], tuple(results), tuple(ids),
+                     {p.im.id: len(p.keypoints) for p in prepared}, dropped,
+                     time.perf_counter() - start,
+                     {im.id: im.offset for im in images})
+
+
+def match_block(block: Any, *, dem: DemSource | None = None,
+                options: MatchOptions | None = None,
+                progress: Progress | None = None) -> TiePoints:
+    """Tie points between all overlapping images of a block file.
+
+    Parameters
+    ----------
+    block : path or geoblock.io.blocks.Block
+        The block file ``geoblock adjust`` reads: each image's ``model`` and ``raster``
+        (required here), and the ``[dem]``.
+    dem : DemSource, optional
+        Overrides the block's DEM.
+    options : MatchOptions, optional
+        Its ``dem_sigma_m`` is the block's ``dem.sigma`` unless given otherwise.
+    progress : callable, optional
+
+    Returns
+    -------
+    TiePoints
+        In the pixels of the models the block names, ids as the block's images.
+
+    Raises
+    ------
+    BlockFileError
+        An image has no ``raster``, or the block has no DEM and none is given.
+    GeoblockError
+        What opening an image, a model or the DEM raises (names the file).
+    """
+    from geoblock.errors import BlockFileError
+    from geoblock.io.blocks import Block, read_block
+    from geoblock.io.dem import open_dem
+
+    spec = block if isinstance(block, Block) else read_block(block)
+    name = "<block>" if isinstance(block, Block) else str(block)
+    missing = [f"images[{k}] ({im.id})" for k, im in enumerate(spec.images)
+               if im.raster is None]
+    if missing:
+        raise BlockFileError(f"{name}: {', '.join(missing)} name(s) no 'raster': geoblock "
+                             "match needs each image's pixels (raster = \"image.tif\")")
+    options = options or MatchOptions()
+    if spec.dem is not None and spec.dem.sigma is not None \
+            and options.dem_sigma_m == MatchOptions.dem_sigma_m:
+        options = options.replace(dem_sigma_m=float(spec.dem.sigma))
+    if dem is None:
+        if spec.dem is None:
+            raise BlockFileError(f"{name}: no [dem] table, and no DEM given: matching "
+                                 "needs the terrain to predict where the images meet")
+        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical, geoid=spec.dem.geoid)
+    images = [MatchImage.from_files(im.id, im.raster, im.model) for im in spec.images]
+    return match_images(images, dem, options=options, progress=progress)
+
+
+def write_tie_points(path: str | os.PathLike[str], tie_points: TiePoints) -> None:
+    """Write the measurements as the image-measurement CSV ``geoblock adjust`` reads
+    (``id, image, row, col, sigma, kind``; ``"-"``: standard output).
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be written (names it).
+    """
+    from geoblock.io.points import write_points
+
+    write_points(path, tie_points.to_columns())
