@@ -15,7 +15,7 @@ def test_run_demo_forced_into_a_foreign_directory(tmp_path):
     messages: list[str] = []
     result = run_demo(out, size="tiny", force=True, progress=messages.append)
     assert isinstance(result, DemoResult) and result.outdir == out
-    assert messages[0].startswith("[1/4]") and messages[-1].startswith("done in")
+    assert messages[0].startswith("[1/6]") and messages[-1].startswith("done in")
     assert result.report.read_text().startswith("# geoblock demo\n")
     assert result.quicklook.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert result.mosaic == out / "mosaic.tif" and (out / "contribution.tif").is_file()

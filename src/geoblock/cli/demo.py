@@ -1,4 +1,4 @@
-"""``geoblock demo``: simulate, orthorectify and mosaic a three-strip block, and report."""
+"""``geoblock demo``: the whole pipeline on a simulated three-strip block, before and after."""
 
 from __future__ import annotations
 
@@ -7,36 +7,44 @@ import click
 __all__ = ["demo"]
 
 
-@click.command(short_help="Simulate three SPOT-5 strips, orthorectify, mosaic and report.")
+@click.command(short_help="The whole pipeline on a simulated block: adjust, orthorectify, "
+               "mosaic, report.")
 @click.argument("outdir", metavar="[OUTDIR]", default="geoblock-demo", required=False)
 @click.option("--size", type=click.Choice(["small", "tiny"]), default="small",
               show_default=True,
-              help="small: 600 x 600 px strips at 100 m (about half a minute); tiny: 200 x 200 "
-              "px strips (a few seconds, for tests).")
+              help="small: 600 x 600 px strips at 100 m (under half a minute on 2 cores); tiny: "
+              "200 x 200 px strips at 300 m (a few seconds, for tests).")
 @click.option("--seed", type=click.IntRange(min=0), default=None, metavar="N",
               help="Seed of every random draw (default: the preset's).")
 @click.option("--force", is_flag=True, default=False,
               help="Write into a non-empty OUTDIR that is not a previous demo's output (files "
               "of the same name are replaced; the directory is not marked as a demo output).")
 def demo(outdir: str, size: str, seed: int | None, force: bool) -> None:
-    """geoblock's main job on built-in data: simulate, orthorectify, mosaic, report.
+    """geoblock's whole pipeline on built-in data, before and after the block adjustment.
 
     Simulates a small block like Teo et al.'s (the teo2010-spot5 preset, small variant: three
     SPOT-5 strips with 10-15 % overlaps over 0-3800 m of terrain, a 40 m DEM, GCPs, ICPs, TPs
-    and ICTPs), orthorectifies each raw image with its ON-BOARD model (what a user is given)
-    on the measured DEM, mosaics the orthos and writes OUTDIR/report.md (footprints, the
-    on-board models' accuracy at the check points, ICTP discrepancies between strips) and
-    OUTDIR/quicklook.png (the mosaic with the strips' outlines). OUTDIR defaults to
-    ./geoblock-demo.
+    and ICTPs, images rendered through the true models); adjusts it as 'geoblock adjust
+    OUTDIR/block/block.toml' does (method dg), in single mode (each strip with its GCPs) and
+    in block mode (GCPs, TPs and DEM elevation control); orthorectifies each strip on the
+    measured DEM with its on-board model (before) and its block-adjusted model (after) and
+    mosaics both sets; measures the errors at the GCPs and ICPs from the truth, the ICTP
+    discrepancies and the misregistration of the orthos at each seam (matched on the
+    images). Writes
+    OUTDIR/report.md (before/after tables), OUTDIR/results.json, OUTDIR/quicklook.png (the
+    two mosaics), OUTDIR/errors.png and OUTDIR/seams.png. Progress goes to standard error,
+    stage by stage. OUTDIR defaults to ./geoblock-demo.
 
     Re-running is safe: the demo writes a marker file, OUTDIR/.geoblock-demo, and a later
-    demo into a directory holding it replaces the previous demo's outputs (block/, orthos/,
-    mosaic.tif, contribution.tif, report.md, quicklook.png; other files are kept). A
-    non-empty OUTDIR without the marker is refused (exit code 2) unless --force.
+    demo into a directory holding it replaces the previous demo's outputs (block/,
+    adjustment/, onboard/, orthos/, mosaic.tif, contribution.tif, report.md, results.json
+    and the PNGs; other files are kept). A non-empty OUTDIR without the marker is refused
+    (exit code 2) unless --force.
 
     \b
     Examples:
       geoblock demo
+      geoblock demo /tmp/demo --size tiny
       geoblock demo /tmp/demo --force
     """
     from pathlib import Path

@@ -4,8 +4,9 @@
 * :func:`run_scenario` simulates a :class:`~geoblock.simulate.scenario.Scenario` into a
   directory: terrain, DEMs, models, points, raw images, a block file and a report of the
   on-board models' accuracy (:mod:`geoblock.workflows.scenario`);
-* :func:`run_demo` simulates a three-strip block, orthorectifies each image with its on-board
-  model, mosaics the orthos and reports (:mod:`geoblock.workflows.demo`).
+* :func:`run_demo` simulates a three-strip block, adjusts it in single and block mode (DEM
+  control), orthorectifies and mosaics the strips with their on-board and their adjusted
+  models, measures the seams and reports before against after (:mod:`geoblock.workflows.demo`).
 
 Every file is read and written through :mod:`geoblock.io`; the computations are those of the
 libraries (a workflow only sequences them, reports progress and names the files).
