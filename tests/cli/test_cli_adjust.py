@@ -42,7 +42,16 @@ def test_adjust_writes_models_reports_and_figures(runner, cli, block_dir):
         # the dg method ends with least-squares collocation around the adjusted model
         assert model.name == "collocation" and model.model.name == "linescan"
         assert (out / f"errors_{image}.png").stat().st_size > 10_000
+        assert (out / f"residuals_{image}.png").stat().st_size > 10_000
     report = json.loads((out / "report.json").read_text())
+    # image residuals per image and kind: the statistics of the measurements' own residuals
+    v = [(m["v_row"], m["v_col"]) for m in report["measurements"]
+         if m["image"] == "strip2" and m["kind"] == "tp"]
+    tp = report["statistics"]["image_residuals_px"]["strip2"]["tp"]
+    assert tp["n"] == len(v)
+    assert tp["rmse_2d"] == pytest.approx(np.sqrt(np.mean([r * r + c * c for r, c in v])))
+    assert set(report["statistics"]["image_residuals_px"]["strip2"]) == {"gcp", "icp", "tp",
+                                                                         "all"}
     assert report["converged"] and 0.7 < report["sigma0"] < 1.3
     assert report["mode"] == "block" and report["dem_control"] == "observation"
     assert {m["kind"] for m in report["measurements"]} == {"gcp", "icp", "tp", "ictp"}
@@ -52,6 +61,7 @@ def test_adjust_writes_models_reports_and_figures(runner, cli, block_dir):
     assert "single" in report
     text = (out / "report.md").read_text()
     for heading in ("Accuracy at control and check points", "Relative accuracy at ICTPs",
+                    "## Image residuals", "| strip2 | TP |",
                     "Single versus block adjustment", "| dp_along | m |"):
         assert heading in text
 

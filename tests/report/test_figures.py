@@ -55,6 +55,17 @@ def test_error_vectors_triangles_for_control_circles_for_checks(points, tmp_path
     assert data.startswith(PNG) and len(data) > 10_000
 
 
+def test_error_vectors_in_image_space_point_down_the_rows(points):
+    col, row, v_col, v_row, kind = points
+    fig = error_vector_plot(col, row, v_col, v_row, kind, scale_bar=0.5, unit="px",
+                            y_down=True, xlabel="col (px)", ylabel="row (px)")
+    ax = fig.axes[0]
+    assert ax.yaxis_inverted() and not ax.xaxis_inverted()
+    key = next(a for a in ax.artists if hasattr(a, "U"))
+    assert "0.5 px error" in key.text.get_text()
+    assert not error_vector_plot(col, row, v_col, v_row, kind).axes[0].yaxis_inverted()
+
+
 def test_error_vector_default_scale(points):
     e, n, de, dn, kind = points
     fig = error_vector_plot(e, n, de, dn, kind)

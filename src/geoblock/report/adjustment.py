@@ -23,13 +23,13 @@ from typing import Any
 import numpy as np
 
 from geoblock.adjust.block import BlockResult
-from geoblock.adjust.statistics import AccuracyStats
+from geoblock.adjust.statistics import AccuracyStats, ImageResidualStats
 from geoblock.io import files
 from geoblock.io.models import write_model
 from geoblock.report.figures import error_vector_plot, to_local_en
 from geoblock.report.tables import stats_table
 
-__all__ = ["report_markdown", "result_dict", "write_result"]
+__all__ = ["image_residuals", "report_markdown", "result_dict", "write_result"]
 
 
 def _f(x: Any) -> Any:
@@ -91,7 +91,48 @@ def _statistics(result: BlockResult) -> dict[str, Any]:
     for kind in ("gcp", "icp"):
         out[kind] = {image: _stats(st) for image, st in result.stats_by_image(kind).items()}
     out["ictp"] = {f"{a} & {b}": _stats(st) for (a, b), st in result.ictp_by_pair().items()}
+    residuals: dict[str, dict[str, Any]] = {}
+    for (image, kind), st in image_residuals(result).items():
+        residuals.setdefault(image, {})[kind] = {k: _f(v) if isinstance(v, float) else v
+                                                 for k, v in vars(st).items()}
+    out["image_residuals_px"] = residuals
     return out
+
+
+def image_residuals(result: BlockResult) -> dict[tuple[str, str], ImageResidualStats]:
+    """Image residuals (observed minus computed, pixels) per image and measurement kind
+    (``gcp``, ``icp``, ``tp``; ICTPs have none), then, for an image with more than one kind,
+    over all of them (``all``)."""
+    m = result.measurements
+    finite = np.isfinite(m.v_row) & np.isfinite(m.v_col)
+    out: dict[tuple[str, str], ImageResidualStats] = {}
+    for image in result.models:
+        mine = (m.image == image) & finite
+        for kind in ("gcp", "icp", "tp"):
+            sel = mine & (m.kind == kind)
+            if sel.any():
+                out[(image, kind)] = ImageResidualStats.from_residuals(m.v_row[sel],
+                                                                       m.v_col[sel])
+        if len({k for (i, k) in out if i == image}) > 1:
+            out[(image, "all")] = ImageResidualStats.from_residuals(m.v_row[mine],
+                                                                    m.v_col[mine])
+    return out
+
+
+def _residual_table(result: BlockResult) -> list[str]:
+    rows = image_residuals(result)
+    if not rows:
+        return []
+    lines = ["## Image residuals", "",
+             "Observed minus computed with the adjusted models, pixels (ICPs: at their surveyed "
+             "ground point, so they carry the check error too).", "",
+             "| image | kind | n | RMS row | RMS col | RMS 2D | mean row | mean col | max 2D |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for (image, kind), s in rows.items():
+        lines.append(f"| {image} | {kind.upper() if kind != 'all' else 'all'} | {s.n} | "
+                     f"{s.rmse_row:.3f} | {s.rmse_col:.3f} | {s.rmse_2d:.3f} | "
+                     f"{s.mean_row:.3f} | {s.mean_col:.3f} | {s.max_2d:.3f} |")
+    return lines + [""]
 
 
 def _table(rows: Mapping[str, AccuracyStats], label: str) -> list[str]:
@@ -149,6 +190,7 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
                 lines.append(f"| ICTP RMSE 2D {key[0]} & {key[1]} (m) | "
                              f"{s_pairs[key].rmse_2d:.2f} | {st.rmse_2d:.2f} |")
         lines.append("")
+    lines += _residual_table(r)
     lines += ["## Parameters", ""]
     for image, e in r.parameters.items():
         if not e.names:
@@ -206,6 +248,18 @@ def _figures(result: BlockResult, folder: Path) -> dict[str, str]:
                               title=f"{image}: GCP and ICP errors after adjustment",
                               path=folder / name)
             out[f"errors at GCPs and ICPs, {image}"] = name
+    m = result.measurements
+    for image in result.models:
+        sel = (m.image == image) & np.isfinite(m.v_row) & np.isfinite(m.v_col)
+        if not sel.any():
+            continue
+        name = f"residuals_{image}.png"
+        error_vector_plot(m.col[sel], m.row[sel], m.v_col[sel], m.v_row[sel],
+                          np.char.upper(m.kind[sel].astype(str)),
+                          title=f"{image}: image residuals after adjustment",
+                          xlabel="col (px)", ylabel="row (px)", unit="px", y_down=True,
+                          path=folder / name)
+        out[f"image residuals, {image}"] = name
     ictp = result.ictp
     if ictp is not None and len(ictp):
         e, n = to_local_en(ictp.lon_a, ictp.lat_a)

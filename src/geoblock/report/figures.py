@@ -136,6 +136,8 @@ def error_vector_plot(
     title: str | None = None,
     xlabel: str = "E (m)",
     ylabel: str = "N (m)",
+    unit: str = "m",
+    y_down: bool = False,
     ax: Axes | None = None,
     figsize: tuple[float, float] = (6.4, 6.4),
     path: str | os.PathLike[str] | None = None,
@@ -162,6 +164,11 @@ def error_vector_plot(
         RMS error.
     title, xlabel, ylabel : str
         The exaggeration is appended to the title.
+    unit : str
+        Unit of the positions and errors in the key (``"m"``; ``"px"`` for image residuals:
+        ``e, n`` then are ``col, row`` and ``de, dn`` the residuals ``v_col, v_row``).
+    y_down : bool
+        Draw the second axis downwards, as image rows are.
     ax : matplotlib Axes, optional
         Draw into these axes (their figure is returned) instead of a new figure.
     figsize : (float, float)
@@ -221,8 +228,10 @@ def error_vector_plot(
     ax.set_xlim(cx - half, cx + half)
     ax.set_ylim(cy - half, cy + half)
     ax.set_aspect("equal", adjustable="box")
+    if y_down:
+        ax.invert_yaxis()  # angles="xy": the vectors follow the data axes
     key_x = 0.995 - 0.5 * scale * scale_bar / (2 * half)  # the arrow is centred on key_x
-    ax.quiverkey(q, key_x, -0.10, scale_bar, f"{scale_bar:g} m error (vectors ×{scale:g})",
+    ax.quiverkey(q, key_x, -0.10, scale_bar, f"{scale_bar:g} {unit} error (vectors ×{scale:g})",
                  labelpos="W", coordinates="axes", fontproperties={"size": 9})
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.07), ncol=4, frameon=False,
               fontsize=9, handletextpad=0.3, columnspacing=1.0)
