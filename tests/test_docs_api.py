@@ -141,7 +141,7 @@ def reference() -> Reference:
 #: the packages whose public modules must be on an API page: the core and the sensor-model
 #: plugins of the run set (requirements.txt); a plugin's hook module (``plugin``) is named in
 #: its page's prose
-PACKAGES = ("geoblock", "geoblock_rpc", "geoblock_spot", "geoblock_quickbird")
+PACKAGES = ("geoblock", "geoblock_rpc", "geoblock_spot", "geoblock_quickbird", "geoblock_papers")
 MODULES = [m for p in PACKAGES for m in _public_modules(importlib.import_module(p))]
 
 

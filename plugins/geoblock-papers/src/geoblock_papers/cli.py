@@ -10,7 +10,13 @@ __all__ = ["experiment"]
 
 
 def _names_help() -> str:
-    return "\n".join(f"  {name:<12} {entry.summary}" for name, entry in EXPERIMENTS.items())
+    lines = []
+    for name, entry in EXPERIMENTS.items():
+        lines.append(f"  {name:<12} {entry.summary}")
+        if entry.runtime:
+            times = ", ".join(f"{variant} {t}" for variant, t in entry.runtime.items())
+            lines.append(f"  {'':<12} run time on 2 cores: {times}")
+    return "\n".join(lines)
 
 
 _HELP = """\
@@ -27,9 +33,13 @@ seed, runs the paper's methods and compares with the simulated truth. OUTDIR (de
 table, with 95 % confidence intervals over the seeds and says which findings reproduced
 (and why not), the PNG figures, and results.json with every number.
 
+The small variant (the default) shrinks the images, not the set-up, and runs in CI; --full
+uses the papers' image sizes and more seeds.
+
 \b
 Examples:
   geoblock experiment teo2010
+  geoblock experiment chen2008 out/chen2008 --repeats 6 --seed 100
   geoblock experiment aguilar2007 /tmp/aguilar --full --repeats 20
 """
 

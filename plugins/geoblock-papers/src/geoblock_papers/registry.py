@@ -20,13 +20,14 @@ import importlib
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 
 from geoblock.errors import GeoblockError
 
-__all__ = ["EXPERIMENTS", "ExperimentError", "ExperimentResult", "run_experiment"]
+__all__ = ["EXPERIMENTS", "ExperimentError", "ExperimentResult", "experiment_module",
+           "run_experiment"]
 
 
 class ExperimentError(GeoblockError, ValueError):
@@ -35,24 +36,31 @@ class ExperimentError(GeoblockError, ValueError):
 
 @dataclass(frozen=True)
 class _Entry:
+    """An experiment of :data:`EXPERIMENTS`: its module, a one-line summary and its run times
+    (``{"small": "~20 s", "full": "~4 min"}``: shown by ``--help``; empty when unmeasured)."""
+
     module: str
     summary: str
+    runtime: dict[str, str] = field(default_factory=dict)
 
 
 #: Experiment name -> its module and a one-line summary (``geoblock experiment --help``).
 EXPERIMENTS: dict[str, _Entry] = {
     "teo2010": _Entry("geoblock_papers.teo2010",
-                      "Teo et al. 2010: MBA, DG and RFM, single vs block, DEM control, "
-                      "collocation, on three SPOT-5 strips"),
+                      "Teo et al. 2010: MBA, DG and RFM, single vs block, on three SPOT-5 "
+                      "strips; DEM control, collocation",
+                      {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"}),
     "chen2008": _Entry("geoblock_papers.chen2008",
-                       "Chen, Teo & Lo 2008: the conference version's tables (elevation-"
-                       "controlled block adjustment)"),
+                       "Chen, Teo & Lo 2008: the conference version's tables (the teo2010 "
+                       "block)", {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"}),
     "chen1993": _Entry("geoblock_papers.chen1993",
                        "Chen & Lee 1993: SPOT resection residuals, check points, orthoimage "
-                       "RMSE over rolling and rugged terrain"),
+                       "RMSE over rolling and rugged terrain",
+                       {"small": "~15 s", "full": "~5 min (10 seeds, 1.5 GB)"}),
     "aguilar2007": _Entry("geoblock_papers.aguilar2007",
                           "Aguilar et al. 2007: RPCV-0, RPCV-1, RFM-1 and the physical model vs "
-                          "GCP count and sampling, along-track error, ortho error budget"),
+                          "GCP count and sampling, along-track error, ortho error budget",
+                          {"small": "~25 s", "full": "~8 min (10 seeds, 2.4 GB)"}),
 }
 
 
@@ -87,11 +95,21 @@ def experiment_module(name: str) -> ModuleType:
     Raises
     ------
     ExperimentError
-        Unknown name (the message lists the known ones).
+        Unknown name (the message lists the known ones), or a module without ``TITLE``,
+        ``CITATION``, ``SEEDS`` or ``run`` (the module docstring).
     """
     if name not in EXPERIMENTS:
         raise ExperimentError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}")
-    return importlib.import_module(EXPERIMENTS[name].module)
+    module = importlib.import_module(EXPERIMENTS[name].module)
+    missing = [a for a in ("TITLE", "CITATION", "run") if not hasattr(module, a)]
+    seeds = getattr(module, "SEEDS", None)
+    if not (isinstance(seeds, dict) and all(
+            isinstance(seeds.get(v), int) and seeds[v] >= 1 for v in ("small", "full"))):
+        missing.append("SEEDS = {'small': n, 'full': m} with n, m >= 1")
+    if missing:
+        raise ExperimentError(f"experiment {name}: module {module.__name__} lacks "
+                              f"{', '.join(missing)}")
+    return module
 
 
 def run_experiment(
@@ -124,6 +142,16 @@ def run_experiment(
     Returns
     -------
     ExperimentResult
+
+    Raises
+    ------
+    ExperimentError
+        Unknown ``name``, ``repeats < 1``, ``seed < 0``, or ``outdir`` is a file (checked
+        before anything runs).
+    GeoblockIOError
+        ``outdir`` or a file in it cannot be written.
+    GeoblockError
+        The experiment failed (the message says where).
     """
     from geoblock_papers.report import Report
 
@@ -132,6 +160,11 @@ def run_experiment(
     count = int(repeats) if repeats is not None else int(module.SEEDS[variant])
     if count < 1:
         raise ExperimentError(f"experiment {name}: repeats must be >= 1, got {count}")
+    if int(seed) < 0:
+        raise ExperimentError(f"experiment {name}: seed must be >= 0, got {seed}")
+    if Path(outdir).exists() and not Path(outdir).is_dir():
+        raise ExperimentError(f"experiment {name}: OUTDIR {str(outdir)!r} exists and is not a "
+                              "directory")
     seeds: Sequence[int] = tuple(int(seed) + k for k in range(count))
     say = progress or (lambda message: None)
     start = time.perf_counter()

@@ -1,15 +1,25 @@
 """The report of an experiment: our figures beside the paper's, table by table.
 
-A :class:`Report` collects, in order, sections of text, side-by-side tables (:meth:`compare`:
-quantity, the paper's figure, ours as the mean and 95 % confidence interval over the seeds,
-and a verdict), plain tables, figures and findings; :meth:`Report.write` writes
-``report.md`` (the findings' summary first), the figures (PNG) and ``results.json`` (every
-number in the tables, with the per-seed values).
+A :class:`Report` collects, in order, sections of text, side-by-side tables, plain tables,
+figures and findings; :meth:`Report.write` writes ``report.md`` (the findings' summary
+first), and ``results.json`` (every number in the tables, with the per-seed values); the
+figures (PNG) are written as they are added.
+
+Side-by-side tables come in two shapes:
+
+* :meth:`Report.compare`: one line per quantity (:class:`Row`): the paper's figure, ours
+  and a verdict;
+* :meth:`Report.grid`: the paper's table layout (:class:`GridRow`: a label and one cell per
+  column), each column split into the paper's figure as printed and ours.
+
+Our figures are :class:`Estimate` values: the per-seed values of a statistic, shown as their
+mean and 95 % Student-t interval of the mean over the seeds.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,8 +29,12 @@ import numpy as np
 
 from geoblock.adjust import confidence_interval
 from geoblock.io.files import make_directory, save_figure, write_json, write_text
+from geoblock_papers.registry import ExperimentError
 
-__all__ = ["Estimate", "Finding", "Report", "Row", "estimate"]
+__all__ = ["Estimate", "Finding", "GridRow", "Report", "Row", "estimate"]
+
+#: what the report's figures may be called: a plain PNG file name, no directory
+_FIGURE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*\.png")
 
 
 @dataclass(frozen=True)
@@ -30,7 +44,8 @@ class Estimate:
     Attributes
     ----------
     values : tuple of float
-        One value per seed (NaN: the run failed; ignored by the statistics).
+        One value per seed (NaN: the run failed or the statistic is undefined for that seed;
+        ignored by the statistics).
     unit : str
         E.g. ``"m"``, ``"px"`` or ``""``.
     """
@@ -40,11 +55,13 @@ class Estimate:
 
     @property
     def finite(self) -> np.ndarray:
+        """(K,) the finite values."""
         v = np.asarray(self.values, dtype=float)
         return v[np.isfinite(v)]
 
     @property
     def mean(self) -> float:
+        """Mean of the finite values (NaN if none)."""
         v = self.finite
         return float(v.mean()) if v.size else math.nan
 
@@ -57,18 +74,23 @@ class Estimate:
         ci = confidence_interval(v)
         return (float(ci.low), float(ci.high))
 
-    def format(self, decimals: int = 2) -> str:
-        """``"5.21 m (4.80-5.62)"``; a single seed shows only the value."""
+    def format(self, decimals: int = 2, *, unit: bool = True) -> str:
+        """``"5.21 m (4.80 to 5.62)"``: the mean and the 95 % interval of the mean, without
+        the unit if not ``unit``. A single seed, or values all equal, show only the value; no
+        finite value shows ``"failed"``."""
         if not self.finite.size:
             return "failed"
-        unit = f" {self.unit}" if self.unit else ""
+        text = f"{self.mean:.{decimals}f}" + (f" {self.unit}" if unit and self.unit else "")
         low, high = self.interval
-        text = f"{self.mean:.{decimals}f}{unit}"
-        if math.isfinite(low):
-            text += f" ({low:.{decimals}f}-{high:.{decimals}f})"
+        if math.isfinite(low) and high > low:
+            text += f" ({low:.{decimals}f} to {high:.{decimals}f})"
         return text
 
+    def __str__(self) -> str:
+        return self.format()
+
     def to_json(self) -> dict[str, Any]:
+        """``{"mean", "ci95": [low, high], "n", "unit", "values"}`` (NaN as null)."""
         low, high = self.interval
         return {"mean": _num(self.mean), "ci95": [_num(low), _num(high)],
                 "n": int(self.finite.size), "unit": self.unit,
@@ -80,9 +102,25 @@ def estimate(values: Iterable[float], unit: str = "m") -> Estimate:
     return Estimate(tuple(float(v) for v in values), unit)
 
 
+def _ours(value: Estimate | str | float, decimals: int, unit: bool = True) -> str:
+    if isinstance(value, Estimate):
+        return value.format(decimals, unit=unit)
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        return f"{value:.{decimals}f}" if math.isfinite(value) else "-"
+    return str(value)
+
+
+def _ours_json(value: Estimate | str | float) -> Any:
+    if isinstance(value, Estimate):
+        return value.to_json()
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        return _num(value)
+    return value
+
+
 @dataclass(frozen=True)
 class Row:
-    """One line of a side-by-side table.
+    """One line of a side-by-side table (:meth:`Report.compare`).
 
     Attributes
     ----------
@@ -101,19 +139,35 @@ class Row:
     verdict: str = ""
 
     def cells(self, decimals: int) -> list[str]:
-        if isinstance(self.ours, Estimate):
-            ours = self.ours.format(decimals)
-        elif isinstance(self.ours, float):
-            ours = f"{self.ours:.{decimals}f}"
-        else:
-            ours = str(self.ours)
-        return [self.quantity, self.paper, ours, self.verdict]
+        """The Markdown cells: quantity, paper, ours, verdict."""
+        return [self.quantity, self.paper, _ours(self.ours, decimals), self.verdict]
 
     def to_json(self) -> dict[str, Any]:
-        ours = self.ours.to_json() if isinstance(self.ours, Estimate) else (
-            _num(self.ours) if isinstance(self.ours, float) else self.ours)
-        return {"quantity": self.quantity, "paper": self.paper, "geoblock": ours,
-                "verdict": self.verdict}
+        return {"quantity": self.quantity, "paper": self.paper,
+                "geoblock": _ours_json(self.ours), "verdict": self.verdict}
+
+
+@dataclass(frozen=True)
+class GridRow:
+    """One line of a side-by-side grid (:meth:`Report.grid`): the paper's table layout.
+
+    Attributes
+    ----------
+    label : str
+        The line's label, e.g. ``"MBA block ICTP"``.
+    paper : sequence of str
+        The paper's figure in each column as printed (``"-"`` where it gives none).
+    ours : sequence of Estimate or str or float
+        Ours in each column.
+    """
+
+    label: str
+    paper: Sequence[str]
+    ours: Sequence[Estimate | str | float]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"label": self.label, "paper": list(self.paper),
+                "geoblock": [_ours_json(v) for v in self.ours]}
 
 
 @dataclass(frozen=True)
@@ -138,7 +192,13 @@ class Finding:
 
     @property
     def verdict(self) -> str:
+        """``"reproduced"``, ``"NOT reproduced"`` or ``"partly"``."""
         return {True: "reproduced", False: "NOT reproduced", None: "partly"}[self.reproduced]
+
+
+def _cell(text: Any) -> str:
+    """A Markdown table cell: pipes escaped, line breaks as spaces."""
+    return " ".join(str(text).split("\n")).replace("|", "\\|")
 
 
 @dataclass
@@ -150,7 +210,14 @@ class Report:
     name, title, citation : str
     variant : {"small", "full"}
     seeds : sequence of int
+        At least one.
     outdir : pathlib.Path
+        Where :meth:`figure` and :meth:`write` write.
+
+    Raises
+    ------
+    ExperimentError
+        An unknown variant or no seed.
     """
 
     name: str
@@ -164,6 +231,20 @@ class Report:
     results: dict[str, Any] = field(default_factory=dict)
     figures: list[Path] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        if self.variant not in ("small", "full"):
+            raise ExperimentError(f"experiment {self.name}: variant must be 'small' or 'full', "
+                                  f"got {self.variant!r}")
+        if not len(self.seeds):
+            raise ExperimentError(f"experiment {self.name}: no seed to run")
+        self.outdir = Path(self.outdir)
+
+    def _key(self, key: str) -> str:
+        if not key or key in self.results:
+            raise ExperimentError(f"experiment {self.name}: results key {key!r} is empty or "
+                                  "used twice")
+        return key
+
     def section(self, title: str, text: str = "", level: int = 2) -> None:
         """A heading, and optionally a paragraph under it."""
         self.blocks.append(f"{'#' * level} {title}\n")
@@ -176,15 +257,32 @@ class Report:
 
     def table(self, header: Sequence[str], rows: Sequence[Sequence[Any]], *,
               key: str | None = None, align: str | None = None) -> None:
-        """A plain Markdown table; ``key`` also records it in ``results.json``.
+        """A plain Markdown table (cells may be :class:`Estimate`); ``key`` also records it in
+        ``results.json``.
 
         ``align``: one character per column, ``l`` or ``r`` (default: the first left, the
         rest right).
+
+        Raises
+        ------
+        ExperimentError
+            A row or ``align`` of another length than ``header``, or ``key`` used before.
         """
         align = align or ("l" + "r" * (len(header) - 1))
-        lines = ["| " + " | ".join(header) + " |",
+        if len(align) != len(header) or set(align) - {"l", "r"}:
+            raise ExperimentError(f"experiment {self.name}: table {key or header[0]!r}: align "
+                                  f"{align!r} must have one 'l' or 'r' per column "
+                                  f"({len(header)})")
+        for row in rows:
+            if len(row) != len(header):
+                raise ExperimentError(f"experiment {self.name}: table {key or header[0]!r}: "
+                                      f"row {list(map(str, row))} has {len(row)} cells for "
+                                      f"{len(header)} columns")
+        if key is not None:
+            self._key(key)
+        lines = ["| " + " | ".join(_cell(h) for h in header) + " |",
                  "|" + "|".join("---" if a == "l" else "---:" for a in align) + "|"]
-        lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+        lines += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
         self.blocks.append("\n".join(lines) + "\n")
         if key is not None:
             self.results[key] = {"header": list(header),
@@ -193,36 +291,123 @@ class Report:
     def compare(self, key: str, rows: Sequence[Row], *, title: str | None = None,
                 note: str = "", decimals: int = 2) -> None:
         """A side-by-side table: quantity, the paper's figure, ours (mean and 95 % interval
-        over the seeds), verdict; recorded under ``key`` in ``results.json``."""
+        over the seeds), verdict; recorded under ``key`` in ``results.json``.
+
+        Raises
+        ------
+        ExperimentError
+            ``key`` used before.
+        """
+        self._key(key)
         if title:
             self.blocks.append(f"**{title}**\n")
-        n = len(self.seeds)
-        ours = f"geoblock (mean, 95 % CI over {n} seed{'s' if n > 1 else ''})"
-        lines = ["| quantity | paper | " + ours + " | verdict |", "|---|---:|---:|---|"]
-        lines += ["| " + " | ".join(r.cells(decimals)) + " |" for r in rows]
+        lines = ["| quantity | paper | " + self._ours_header() + " | verdict |",
+                 "|---|---:|---:|---|"]
+        lines += ["| " + " | ".join(_cell(c) for c in r.cells(decimals)) + " |" for r in rows]
         self.blocks.append("\n".join(lines) + "\n")
         if note:
             self.text(note)
         self.results[key] = [r.to_json() for r in rows]
 
+    def grid(self, key: str, columns: Sequence[str], rows: Sequence[GridRow], *,
+             title: str | None = None, note: str = "", decimals: int = 2,
+             label: str = "") -> None:
+        """A side-by-side table in the paper's layout: per column, the paper's figure as
+        printed beside ours (mean and 95 % interval over the seeds, without units: give them
+        in ``title``); recorded under ``key``.
+
+        Parameters
+        ----------
+        key : str
+        columns : sequence of str
+            The paper's column headings, e.g. ``["strips 1&2 E", "strips 1&2 N"]``.
+        rows : sequence of GridRow
+            One cell per column in both ``paper`` and ``ours``.
+        title, note : str
+            Above and below the table.
+        decimals : int
+        label : str
+            Heading of the label column.
+
+        Raises
+        ------
+        ExperimentError
+            A row whose ``paper`` or ``ours`` has another length than ``columns``, or ``key``
+            used before.
+        """
+        self._key(key)
+        for r in rows:
+            if len(r.paper) != len(columns) or len(r.ours) != len(columns):
+                raise ExperimentError(
+                    f"experiment {self.name}: grid {key!r}: row {r.label!r} has "
+                    f"{len(r.paper)} paper and {len(r.ours)} geoblock cells for "
+                    f"{len(columns)} columns")
+        if title:
+            self.blocks.append(f"**{title}**\n")
+        header = [label] + [f"{c}: {who}" for c in columns for who in ("paper", "geoblock")]
+        lines = ["| " + " | ".join(_cell(h) for h in header) + " |",
+                 "|---|" + "---:|" * (2 * len(columns))]
+        for r in rows:
+            cells = [r.label]
+            for paper, ours in zip(r.paper, r.ours, strict=True):
+                cells += [paper, _ours(ours, decimals, unit=False)]
+            lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+        self.blocks.append("\n".join(lines) + "\n")
+        if note:
+            self.text(note)
+        self.results[key] = {"columns": list(columns), "rows": [r.to_json() for r in rows]}
+
+    def _ours_header(self) -> str:
+        n = len(self.seeds)
+        return f"geoblock (mean, 95 % CI over {n} seed{'s' if n > 1 else ''})"
+
     def finding(self, key: str, statement: str, reproduced: bool | None,
                 evidence: str) -> Finding:
-        """Record a paper's finding and whether it reproduced (listed first in the report)."""
+        """Record a paper's finding and whether it reproduced (listed first in the report).
+
+        Raises
+        ------
+        ExperimentError
+            ``key`` used by another finding.
+        """
+        if any(f.key == key for f in self.findings):
+            raise ExperimentError(f"experiment {self.name}: finding {key!r} recorded twice")
         found = Finding(key, statement, reproduced, evidence)
         self.findings.append(found)
         return found
 
     def figure(self, fig: Any, filename: str, caption: str, *, dpi: int = 120) -> Path:
-        """Save a matplotlib figure as ``outdir/filename`` (PNG) and show it here."""
+        """Save a matplotlib figure as ``outdir/filename`` (PNG, cropped to its content:
+        legends outside the axes included) and show it here.
+
+        Raises
+        ------
+        ExperimentError
+            ``filename`` is not a plain ``*.png`` name, or was used before.
+        GeoblockIOError
+            The file cannot be written.
+        """
+        if not _FIGURE_NAME.fullmatch(filename):
+            raise ExperimentError(f"experiment {self.name}: figure name {filename!r} must be a "
+                                  "plain file name ending in .png")
+        if any(p.name == filename for p in self.figures):
+            raise ExperimentError(f"experiment {self.name}: figure {filename!r} written twice")
         make_directory(self.outdir)
-        path = save_figure(fig, self.outdir / filename, dpi=dpi)
+        path = save_figure(fig, self.outdir / filename, dpi=dpi, bbox_inches="tight")
         self.figures.append(path)
         self.blocks.append(f"![{caption}]({filename})\n\n*{caption}*\n")
         return path
 
     def record(self, key: str, value: Any) -> None:
-        """Any JSON-able value (numpy arrays and scalars included) into ``results.json``."""
-        self.results[key] = _jsonable(value)
+        """Any JSON-able value (numpy arrays and scalars, :class:`Estimate` included) into
+        ``results.json``.
+
+        Raises
+        ------
+        ExperimentError
+            ``key`` used before.
+        """
+        self.results[self._key(key)] = _jsonable(value)
 
     def markdown(self, seconds: float | None = None) -> str:
         """The whole ``report.md``."""
@@ -234,13 +419,25 @@ class Report:
                 + (f" Run time: {seconds:.0f} s." if seconds is not None else "") + "\n"]
         if self.findings:
             lines = ["| finding (paper) | here | evidence |", "|---|---|---|"]
-            lines += [f"| {f.statement} | {f.verdict} | {f.evidence} |" for f in self.findings]
+            lines += [f"| {_cell(f.statement)} | {f.verdict} | {_cell(f.evidence)} |"
+                      for f in self.findings]
             head += ["## Findings\n", "\n".join(lines) + "\n"]
         return "\n".join(head + self.blocks)
 
     def write(self, seconds: float | None = None) -> dict[str, Path]:
         """Write ``report.md`` and ``results.json`` into ``outdir`` (figures are written by
-        :meth:`figure`)."""
+        :meth:`figure`).
+
+        Returns
+        -------
+        dict
+            ``{"report": path, "results": path}``.
+
+        Raises
+        ------
+        GeoblockIOError
+            A file cannot be written, or a result is not JSON-able (names the file).
+        """
         make_directory(self.outdir)
         report = write_text(self.outdir / "report.md", self.markdown(seconds))
         data = {"experiment": self.name, "title": self.title, "citation": self.citation,
@@ -261,7 +458,7 @@ def _num(x: Any) -> float | None:
 
 
 def _jsonable(value: Any) -> Any:
-    if isinstance(value, Estimate | Row):
+    if isinstance(value, Estimate | Row | GridRow):
         return value.to_json()
     if isinstance(value, np.ndarray):
         return [_jsonable(v) for v in value.tolist()]
