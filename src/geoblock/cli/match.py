@@ -66,6 +66,12 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               callback=positive_float,
               help="The sigma column written, pixels; default estimated per pair from the "
               "matches' scatter across the epipolar direction.")
+@click.option("--ictp-share", type=click.FloatRange(0.0, 0.5), default=0.0, show_default=True,
+              metavar="FRACTION",
+              help="Write this share of the tie points as ICTPs (kind ictp): measured but not "
+              "adjusted; 'geoblock adjust' ray-traces them onto the DEM from each image and "
+              "reports the images' relative accuracy (Teo et al.'s independent check tie "
+              "points).")
 @click.option("--id-prefix", default="tp", show_default=True, metavar="TEXT",
               help="Tie-point ids are TEXT00000, TEXT00001, ...")
 @click.option("--diagnostics", metavar="CSV", default=None,
@@ -77,7 +83,7 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
           dem_sigma: float | None, no_crop: bool,
           search_px: float | None, max_keypoints: int, contrast_threshold: float, ratio: float,
           min_score: float, order: int, k_sigma: float, sigma_px: float | None,
-          id_prefix: str, diagnostics: str | None) -> None:
+          ictp_share: float, id_prefix: str, diagnostics: str | None) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
     image-measurement CSV 'geoblock adjust' reads: id, image, row, col, sigma, kind (tp).
 
@@ -94,7 +100,7 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
     height parallax (height test). A point matched in more than two images has one id.
 
     Rows and columns are in the pixels of each image's model: for an IMAGE that is a crop of
-    the model's scene (a pixel-unit geotransform, as 'gdal_translate -srcwin' writes), the
+    the model's scene (a pixel-unit geotransform without CRS, as shareloc's crops carry), the
     scene's pixels, the ones the model file describes (--no-crop takes every IMAGE's pixels
     as its model's). With BLOCK.toml, each [[images]] entry
     needs 'raster' (the image file) besides 'model'; the DEM is the block's [dem].
@@ -138,7 +144,7 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         images = _images(inputs, models, ids, no_crop)
         result = match_images(images, _open_dem(dem_source, dem_vertical, geoid),
                               options=opts, progress=say)
-    _write(result, output, diagnostics)
+    _write(result, output, diagnostics, ictp_share)
     say(result.summary())
 
 
@@ -176,9 +182,9 @@ def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...
     return out
 
 
-def _write(result: Any, output: str, diagnostics: str | None) -> None:
+def _write(result: Any, output: str, diagnostics: str | None, ictp_share: float) -> None:
     from geoblock.io.points import write_points
 
-    write_points(output, result.to_columns())
+    write_points(output, result.to_columns(ictp_share))
     if diagnostics:
         write_points(diagnostics, result.diagnostics())

@@ -394,17 +394,46 @@ class TiePoints:
         """Number of tie points (distinct ids)."""
         return int(np.unique(self.id).size)
 
-    def to_columns(self) -> dict[str, np.ndarray]:
-        """The image-measurement columns ``id, image, row, col, sigma, kind`` (``tp``) that
-        :func:`geoblock.io.write_points` writes and ``geoblock adjust`` reads."""
-        return {"id": self.id, "image": self.image, "row": self.row, "col": self.col,
-                "sigma": self.sigma, "kind": np.full(self.id.size, "tp")}
+    def kinds(self, ictp_share: float = 0.0) -> np.ndarray:
+        """``"tp"`` per measurement, or ``"ictp"`` for the points kept as independent check
+        tie points (Teo et al.: measured, not adjusted, ray-traced onto the DEM from each
+        image afterwards to measure the images' relative accuracy).
 
-    def image_points(self) -> ImagePoints:
-        """The measurements as :class:`geoblock.adjust.ImagePoints` (kind ``tp``)."""
+        Parameters
+        ----------
+        ictp_share : float
+            Share of the points, in [0, 0.5]: every ``round(1 / ictp_share)``-th point in id
+            order (so spread over the images like the points themselves, and the same for
+            the same inputs). 0: none.
+
+        Raises
+        ------
+        MatchError
+            ``ictp_share`` outside [0, 0.5].
+        """
+        share = float(ictp_share)
+        if not 0.0 <= share <= 0.5:
+            raise MatchError(f"ictp_share must be in [0, 0.5], got {ictp_share!r}")
+        kind = np.full(self.id.size, "tp", dtype="<U4")
+        if share > 0.0 and self.id.size:
+            ids, index = np.unique(self.id, return_inverse=True)
+            every = max(2, round(1.0 / share))
+            kind[(index % every) == every - 1] = "ictp"
+        return kind
+
+    def to_columns(self, ictp_share: float = 0.0) -> dict[str, np.ndarray]:
+        """The image-measurement columns ``id, image, row, col, sigma, kind`` (``tp``, or
+        ``ictp`` for a share of the points: :meth:`kinds`) that :func:`geoblock.io.write_points`
+        writes and ``geoblock adjust`` reads."""
+        return {"id": self.id, "image": self.image, "row": self.row, "col": self.col,
+                "sigma": self.sigma, "kind": self.kinds(ictp_share)}
+
+    def image_points(self, ictp_share: float = 0.0) -> ImagePoints:
+        """The measurements as :class:`geoblock.adjust.ImagePoints` (kinds as
+        :meth:`to_columns`)."""
         from geoblock.adjust.observations import ImagePoints
 
-        return ImagePoints.from_columns(self.to_columns(), source="geoblock match")
+        return ImagePoints.from_columns(self.to_columns(ictp_share), source="geoblock match")
 
     def diagnostics(self) -> dict[str, np.ndarray]:
         """Every candidate of every pair: ``pair, image_a, image_b, row_a, col_a, row_b,
@@ -977,7 +1006,8 @@ def match_block(block: Any, *, dem: DemSource | None = None,
     return match_images(images, dem, options=options, progress=progress)
 
 
-def write_tie_points(path: str | os.PathLike[str], tie_points: TiePoints) -> None:
+def write_tie_points(path: str | os.PathLike[str], tie_points: TiePoints,
+                     ictp_share: float = 0.0) -> None:
     """Write the measurements as the image-measurement CSV ``geoblock adjust`` reads
     (``id, image, row, col, sigma, kind``; ``"-"``: standard output).
 
@@ -988,4 +1018,4 @@ def write_tie_points(path: str | os.PathLike[str], tie_points: TiePoints) -> Non
     """
     from geoblock.io.points import write_points
 
-    write_points(path, tie_points.to_columns())
+    write_points(path, tie_points.to_columns(ictp_share))
