@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from _measure import measure  # benchmarks/_measure.py (run as a script)
-from geoblock_spot.chenlee import ChenLeeModel
+from geoblock_spot.chenlee import ChenLeeModel, Interior
 from geoblock_spot.fit import fit_chenlee
 
 import geoblock
@@ -63,10 +63,14 @@ def main() -> None:
                          row[:k] + 3.0, col[:k] - 2.0, sigma_row=0.2, sigma_col=0.2)
     measure(f"resect mba set (19 parameters, {k} GCPs)", lambda: resect(mba, gcps), k, repeat=3)
     push = ConstantVelocityPushbroom.example(shape=(6000, 6000), roll=0.1)
-    fit = fit_chenlee(push)
+    # the synthetic pushbroom publishes no interior: its example's 2.5 m pixels from 700 km
+    interior = Interior(pixel_size_m=1.082 * 2.5 / 700e3, focal_length_m=1.082,
+                        line_period_s=2.5 / 7000.0)
+    fit = fit_chenlee(push, interior=interior)
     print(f"  fit_chenlee to a 6000 x 6000 pushbroom: {fit.n_points} grid points, "
           f"max {fit.max_px:.2e} px, check max {fit.check_max_px:.2e} px")
-    measure("fit_chenlee (15 x 15 x 5 grid)", lambda: fit_chenlee(push), fit.n_points, repeat=1)
+    measure("fit_chenlee (15 x 15 x 5 grid)", lambda: fit_chenlee(push, interior=interior),
+            fit.n_points, repeat=1)
 
     # the DIMAP line-of-sight models (geoblock's linescan model) of the shared test data
     data = Path(os.environ.get("GEOBLOCK_TEST_DATA", HERE.parents[2] / "shared" / "data"))

@@ -320,7 +320,13 @@ def test_mba_resection_reproduces_chen_and_lee_tables_2_and_5(table1, seed):
 
 # ---------------------------------------------------------------------- fitting other models
 def test_fit_reproduces_a_constant_velocity_pushbroom():
-    fit = fit_chenlee(ConstantVelocityPushbroom.example(roll=0.1))
+    """The synthetic pushbroom does not publish its interior: given explicitly (its
+    ``example``'s 2.5 m pixels from 700 km at 7 km/s)."""
+    interior = Interior(pixel_size_m=1.082 * 2.5 / 700e3, focal_length_m=1.082,
+                        line_period_s=2.5 / 7000.0)
+    fit = fit_chenlee(ConstantVelocityPushbroom.example(roll=0.1), interior=interior)
+    assert fit.interior_source == "given" and fit.model.interior == interior
+    assert fit.model.coefficients[18] == pytest.approx(1.0, abs=1e-6)  # Sy: the right pixel
     assert fit.converged and fit.iterations <= 5
     assert fit.max_px < 1e-6 and fit.check_max_px < 1e-6
     assert fit.n_points == 15 * 15 * 5

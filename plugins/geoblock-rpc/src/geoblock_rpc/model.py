@@ -98,7 +98,8 @@ class RpcModel(SensorModelBase):
     -----
     No adjustable parameters: refine an RPC with ``geoblock.ImageCorrection(model, order)``
     (RPCV-0: order 0, RPCV-1: order 1). ``ERR_BIAS``/``ERR_RAND`` are kept in
-    :attr:`rpc` as the vendor's a-priori accuracy (metres).
+    :attr:`rpc` as the vendor's a-priori accuracy (metres); ``ERR_BIAS`` is also the model's
+    :attr:`location_accuracy_m`, as linescan models state theirs.
     """
 
     name: ClassVar[str] = "rpc"
@@ -183,6 +184,21 @@ class RpcModel(SensorModelBase):
         """``HEIGHT_OFF -/+ HEIGHT_SCALE``, metres above the ellipsoid."""
         r = self._rpc
         return (r.height_off - abs(r.height_scale), r.height_off + abs(r.height_scale))
+
+    @property
+    def location_accuracy_m(self) -> float | None:
+        """The product's stated location accuracy (1 sigma, metres), or None if unknown.
+
+        RPC00B's ``ERR_BIAS`` (``errBias`` in a .RPB, ``ERR_BIAS`` in an _RPC.TXT): the RMS
+        bias error per horizontal axis of all points of the image, metres; None when the file
+        does not give it or gives -1 or 0 ("unknown"; OSSIM .geom files write 0). ``ERR_RAND``,
+        the random error of each point (typically a few decimetres), stays in :attr:`rpc`.
+        DIMAP v2's ``ERR_BIAS_ROW/COL`` and ``ERR_BIAS_X/Y`` are the residuals of the RFM's
+        fit to the physical model (pixels, degrees), not a location accuracy: not used.
+        ``geoblock match`` sizes its search window from it.
+        """
+        bias = self._rpc.err_bias
+        return bias if bias is not None and bias > 0 else None
 
     @property
     def domain_limit(self) -> float:

@@ -4,22 +4,42 @@ This is how MBA starts from on-board data: the DIMAP line-of-sight model (or any
 :class:`~geoblock.models.protocol.SensorModel`) generates a 3D grid of ground points, and the
 19 parameters of :class:`~geoblock_spot.chenlee.ChenLeeModel` are fitted to them by
 Gauss-Newton with the analytic partials; the fit error is reported in pixels.
+
+The fitted model's interior geometry (:class:`~geoblock_spot.chenlee.Interior`: line period,
+pixel size, focal length) is the source's own when it can be known (:func:`source_interior`):
+the ``mba`` set derives its a-priori sigmas from the scene duration and swath, so a wrong
+interior would make them silently wrong.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from geoblock import coords
-from geoblock.errors import AdjustmentError
+from geoblock.errors import AdjustmentError, GeoblockWarning, ParameterSetError
+from geoblock.models.linescan import LinescanModel
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import Status
 from geoblock_spot.chenlee import SPOT1A_INTERIOR, ChenLeeModel, Interior
 
-__all__ = ["ChenLeeFit", "fit_chenlee"]
+__all__ = ["NOMINAL_FOCAL_LENGTH_M", "ChenLeeFit", "InteriorWarning", "fit_chenlee",
+           "source_interior"]
+
+NOMINAL_FOCAL_LENGTH_M: float = SPOT1A_INTERIOR.focal_length_m
+"""Focal length given to an interior derived from look directions, metres (SPOT HRV and HRG:
+1.082 m). Look directions are angles: they fix ``pixel_size / focal_length`` (the angular
+pixel), which is all the Chen & Lee model uses, not the focal length itself."""
+
+
+class InteriorWarning(GeoblockWarning):
+    """:func:`fit_chenlee` cannot know the source model's interior geometry (line period,
+    angular pixel) and falls back to SPOT 1A's (:data:`~geoblock_spot.chenlee.SPOT1A_INTERIOR`):
+    the fitted geometry is right, but its time scale (``t = row * line_period``) and
+    ``Sy`` are SPOT 1A's, and ``mba`` sigmas derived later from them would be wrong."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +63,10 @@ class ChenLeeFit:
     history : list of dict
         Per Gauss-Newton iteration: ``rms_px`` before the step and ``max_step_px`` (largest
         predicted image motion of the step).
+    interior_source : {"given", "source", "assumed SPOT 1A"}
+        Where the fitted model's interior came from: the ``interior`` argument, the source
+        model (:func:`source_interior`), or SPOT 1A's for want of either (with an
+        :class:`InteriorWarning`). ``model.scene_duration_s`` is ``rows * line_period``.
     """
 
     model: ChenLeeModel
@@ -55,6 +79,43 @@ class ChenLeeFit:
     converged: bool
     iterations: int
     history: list[dict] = field(repr=False)
+    interior_source: str = "given"
+
+
+def source_interior(model: SensorModel) -> Interior | None:
+    """The interior geometry of a sensor model, when its public description gives it.
+
+    * a :class:`~geoblock_spot.chenlee.ChenLeeModel`: its own :attr:`interior`;
+    * a :class:`geoblock.models.linescan.LinescanModel` (the simulator's models, the SPOT
+      DIMAP and DIMAP v2 line-of-sight models): the line period of its
+      :attr:`~geoblock.models.linescan.LinescanModel.line_times`, and the angular pixel
+      ``pixel_size / focal_length = 2 tan(theta / 2) / (cols - 1)`` of its look directions,
+      ``theta`` the angle between the first and last detectors' (that of a pinhole array
+      centred on its boresight, whatever the tilt of the sensor frame: SPOT 1-4's look
+      directions hold the mirror's), as ``pixel_size_m`` behind
+      :data:`NOMINAL_FOCAL_LENGTH_M` (a SPOT scene gets its CCD pitch: 13 um for HRV
+      panchromatic, 6.5 um for HRG's 5 m);
+    * anything else (an RPC model, ...): None.
+
+    Parameters
+    ----------
+    model : SensorModel
+
+    Returns
+    -------
+    Interior or None
+    """
+    if isinstance(model, ChenLeeModel):
+        return model.interior
+    if isinstance(model, LinescanModel):
+        v = model.look.vectors  # (cols, 3) unit vectors, sensor frame
+        first, last = v[0], v[-1]
+        angle = math.atan2(float(np.linalg.norm(np.cross(first, last))), float(first @ last))
+        pitch = 2.0 * math.tan(angle / 2.0) / (v.shape[0] - 1)
+        return Interior(pixel_size_m=NOMINAL_FOCAL_LENGTH_M * pitch,
+                        focal_length_m=NOMINAL_FOCAL_LENGTH_M,
+                        line_period_s=model.line_times.line_period_s)
+    return None
 
 
 def _grid(shape: tuple[int, int], n: tuple[int, int], heights: np.ndarray, centres: bool):
@@ -152,7 +213,7 @@ def _initial_coefficients(model: SensorModel, frame: coords.LocalFrame,
 def fit_chenlee(
     model: SensorModel,
     *,
-    interior: Interior = SPOT1A_INTERIOR,
+    interior: Interior | None = None,
     frame: coords.LocalFrame | None = None,
     heights: np.ndarray | None = None,
     grid: tuple[int, int] = (15, 15),
@@ -172,10 +233,15 @@ def fit_chenlee(
     ----------
     model : SensorModel
         The source, e.g. a DIMAP line-of-sight model.
-    interior : Interior
-        Nominal interior geometry (default SPOT 1A). Only used as the model's constants:
-        errors in ``focal_length / pixel_size`` are absorbed by ``Sy`` and in the line period
-        by the time polynomials.
+    interior : Interior, optional
+        Interior geometry of the fitted model (line period, pixel size, focal length); default
+        the source's (:func:`source_interior`: a linescan model's line period and angular
+        pixel, a Chen & Lee model's interior). Only ``focal_length / pixel_size`` and the line
+        period enter the model, and errors in them are absorbed by ``Sy`` and the time
+        polynomials; but the ``mba`` sigmas scale with the scene duration ``rows *
+        line_period`` and the swath, so they need the right values. When the source does not
+        tell (e.g. an RPC model) and none is given, SPOT 1A's is used with an
+        :class:`InteriorWarning`, and ``location_accuracy_m`` is refused.
     frame : geoblock.coords.LocalFrame, optional
         Work frame; default :func:`default_frame` (image centre, ``X`` along track).
     heights : array_like, optional
@@ -199,9 +265,33 @@ def fit_chenlee(
 
     Raises
     ------
+    ParameterSetError
+        ``location_accuracy_m`` is given but the interior is neither given nor known from the
+        source (the ``mba`` sigmas need the scene duration).
     AdjustmentError
         The source model cannot backproject its grid or the fit is singular.
+
+    Warns
+    -----
+    InteriorWarning
+        The interior is neither given nor known from the source: SPOT 1A's is used.
     """
+    interior_source = "given"
+    if interior is None:
+        interior = source_interior(model)
+        interior_source = "source"
+    if interior is None:
+        if location_accuracy_m is not None:
+            raise ParameterSetError(
+                f"fit_chenlee: the {model.name!r} model does not tell its line period and "
+                "pixel size, from which the mba sigmas derive (scene duration, swath); give "
+                "interior=Interior(pixel_size_m=..., focal_length_m=..., line_period_s=...)")
+        warnings.warn(
+            f"fit_chenlee: the {model.name!r} model does not tell its line period and pixel "
+            "size; the fitted model uses SPOT 1A's (1.5 ms, 13 um, 1.082 m): its time scale "
+            "and Sy are SPOT 1A's. Give interior=Interior(...) to avoid this",
+            InteriorWarning, stacklevel=2)
+        interior, interior_source = SPOT1A_INTERIOR, "assumed SPOT 1A"
     if frame is None:
         frame = default_frame(model)
     h0, h1 = model.height_range
@@ -258,6 +348,7 @@ def fit_chenlee(
         converged=converged,
         iterations=len(history),
         history=history,
+        interior_source=interior_source,
     )
 
 
