@@ -1,13 +1,20 @@
 """Sub-pixel refinement (correlation, then least-squares matching) on images whose shift is
-known exactly: a smooth random texture resampled at a known offset."""
+known exactly: a smooth random texture resampled at a known offset; and the least-squares
+matching solver it shares with the seam measurement (:mod:`geoblock.match.lsm`) on an analytic
+image."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from geoblock.errors import MatchError
+import geoblock.match.refine
+import geoblock.match.seams
+from geoblock.errors import MatchError, ShapeMismatchError
+from geoblock.match.lsm import LsmStatus, least_squares_match
 from geoblock.match.refine import RefineStatus, refine_matches
 from geoblock.ortho.kernels import resample
 
@@ -114,3 +121,119 @@ def test_options_are_checked():
         refine_matches(a, a, one, one, one, one, jac, half_px=1)
     with pytest.raises(MatchError, match="tolerance_px"):
         refine_matches(a, a, one, one, one, one, jac, tolerance_px=0.0)
+
+
+# ---------------------------------------------------------------- the least-squares solver
+WAVES = np.array([[0.7, 0.3], [0.4, -0.9], [-0.25, 0.55]])  # (row, col) frequencies, rad/px
+
+
+def wavy(row, col):
+    """An analytic image and its derivatives along rows and columns."""
+    phase = WAVES[:, 0] * np.asarray(row)[..., None] + WAVES[:, 1] * np.asarray(col)[..., None]
+    return (np.sin(phase).sum(-1), (np.cos(phase) * WAVES[:, 0]).sum(-1),
+            (np.cos(phase) * WAVES[:, 1]).sum(-1))
+
+
+def patches(n=6, half=5, seed=4):
+    """Patch centres ``(n, 2)`` and the pixel offsets of a patch ``(P, 2)``."""
+    rng = np.random.default_rng(seed)
+    u = np.arange(-half, half + 1.0)
+    grid = np.stack(np.meshgrid(u, u, indexing="ij"), -1).reshape(-1, 2)
+    return rng.uniform(0, 100, (n, 2)), grid
+
+
+def sampler(centres, grid, calls=None):
+    def sample(index, shift):
+        if calls is not None:
+            calls.append(index.copy())
+        at = centres[index, None, :] + grid[None] + shift[:, None, :]
+        return wavy(at[..., 0], at[..., 1])
+    return sample
+
+
+def test_the_solver_recovers_shift_gain_and_offset():
+    centres, grid = patches()
+    rng = np.random.default_rng(7)
+    d = rng.uniform(-0.6, 0.6, (6, 2))
+    gain, offset = rng.uniform(0.7, 1.4, 6), rng.uniform(-20, 20, 6)
+    at = centres[:, None, :] + grid[None] + d[:, None, :]
+    target = offset[:, None] + gain[:, None] * wavy(at[..., 0], at[..., 1])[0]
+    calls = []
+    out = least_squares_match(target, sampler(centres, grid, calls), np.zeros((6, 2)),
+                              tolerance_px=1e-8, max_iterations=20)
+    assert (out.status == LsmStatus.CONVERGED).all()
+    np.testing.assert_allclose(out.shift, d, atol=1e-7)
+    np.testing.assert_allclose(out.gain, gain, rtol=1e-7)
+    np.testing.assert_allclose(out.offset, offset, atol=1e-5)
+    assert (out.iterations >= 2).all() and (out.iterations <= 10).all()
+    # an exact fit: no residual, no variance; every call asks for the patches still active
+    assert np.abs(out.covariance).max() < 1e-12
+    assert all(np.isin(later, earlier).all()
+               for earlier, later in zip(calls[:-1], calls[1:], strict=True))
+    # with noise, the covariance is the precision of the shift
+    noisy = target + np.random.default_rng(8).normal(0, 0.05, target.shape)
+    out = least_squares_match(noisy, sampler(centres, grid), np.zeros((6, 2)))
+    err = np.abs(out.shift - d)
+    sigma = np.sqrt(np.einsum("nii->ni", out.covariance))
+    assert (out.status == LsmStatus.CONVERGED).all() and (err < 4 * sigma).all()
+    assert (sigma < 0.05).all()
+
+
+def test_robust_weights_ignore_a_part_that_differs():
+    centres, grid = patches(n=4, half=8)
+    d = np.array([0.3, -0.4])
+    at = centres[:, None, :] + grid[None] + d
+    target = wavy(at[..., 0], at[..., 1])[0]
+    target[:, :40] += 3.0  # a corner of every patch is something else (a cloud)
+    plain = least_squares_match(target, sampler(centres, grid), np.zeros((4, 2)),
+                                max_shift_px=5.0, max_iterations=30)
+    robust = least_squares_match(target, sampler(centres, grid), np.zeros((4, 2)),
+                                 robust_k=2.0, max_shift_px=5.0, max_iterations=30)
+    assert (robust.status == LsmStatus.CONVERGED).all()
+    assert np.abs(robust.shift - d).max() < 0.02 < np.abs(plain.shift - d).max()
+
+
+def test_the_solver_says_why_a_patch_failed():
+    centres, grid = patches(n=5)
+    d = np.array([[0.2, 0.1], [0.2, 0.1], [1.2, 1.2], [0.2, 0.1], [0.2, 0.1]])
+    at = centres[:, None, :] + grid[None] + d[:, None, :]
+    target = wavy(at[..., 0], at[..., 1])[0]
+    sample = sampler(centres, grid)
+
+    def holes(index, shift):
+        values, gr, gc = sample(index, shift)
+        values[index == 0] = np.nan  # patch 0 has no data
+        for v in (values, gr, gc):  # patch 1 is flat
+            v[index == 1] = 0.0 if v is not values else 5.0
+        return values, gr, gc
+
+    out = least_squares_match(target, holes, np.zeros((5, 2)), max_shift_px=1.5,
+                              shift_norm="max")
+    assert list(out.status[:3]) == [LsmStatus.NO_DATA, LsmStatus.NO_TEXTURE,
+                                    LsmStatus.CONVERGED]
+    assert np.isnan(out.covariance[:2]).all() and (out.iterations[:2] == 1).all()
+    # (1.2, 1.2) is inside a square of half-side 1.5, not inside a circle of radius 1.5
+    out = least_squares_match(target, sample, np.zeros((5, 2)), max_shift_px=1.5)
+    assert out.status[2] == LsmStatus.DIVERGED
+    out = least_squares_match(target, sample, np.zeros((5, 2)), max_iterations=1,
+                              tolerance_px=1e-9)
+    assert (out.status == LsmStatus.MAX_ITERATIONS).all()
+
+
+def test_the_solver_checks_its_inputs():
+    centres, grid = patches(n=2)
+    sample = sampler(centres, grid)
+    target = np.zeros((2, grid.shape[0]))
+    with pytest.raises(ShapeMismatchError, match="start"):
+        least_squares_match(target, sample, np.zeros((3, 2)))
+    with pytest.raises(ShapeMismatchError, match="weight"):
+        least_squares_match(target, sample, np.zeros((2, 2)), weight=np.ones(3))
+    for bad in ({"tolerance_px": 0.0}, {"max_condition": -1.0}, {"robust_k": math.nan},
+                {"max_iterations": 0}, {"shift_norm": "l1"}):
+        with pytest.raises(MatchError):
+            least_squares_match(target, sample, np.zeros((2, 2)), **bad)
+
+
+def test_one_least_squares_matching_for_the_matcher_and_the_seams():
+    assert geoblock.match.refine.least_squares_match is least_squares_match
+    assert geoblock.match.seams.least_squares_match is least_squares_match

@@ -1,5 +1,6 @@
-"""The demo's seam measurement (``seam_shift``) on known shifts, and the small demo's orthos
-lined up at the seams after the block adjustment."""
+"""The seam measurement (:mod:`geoblock.match.seams`, which ``geoblock demo`` re-exports) on
+known shifts, its outcomes, the orthos placed on one grid, and the small demo's orthos lined up
+at the seams after the block adjustment."""
 
 from __future__ import annotations
 
@@ -10,8 +11,16 @@ import pytest
 from affine import Affine
 from scipy import ndimage
 
-from geoblock.errors import ShapeMismatchError
-from geoblock.workflows.demo import SEAM_SEGMENTS, run_demo, seam_shift
+import geoblock.match.seams as seams
+from geoblock.errors import GridError, MosaicError, ShapeMismatchError
+from geoblock.match.seams import (
+    SEAM_SEGMENTS,
+    on_common_grid,
+    overlapping_pairs,
+    seam_shift,
+    smoothed_overlap,
+)
+from geoblock.workflows.demo import run_demo
 
 RES = 10.0
 TRANSFORM = Affine(RES, 0.0, 500_000.0, 0.0, -RES, 2_600_000.0)
@@ -86,6 +95,51 @@ def test_seam_shift_outcomes():
     assert seam_shift(a, b, TRANSFORM).status in ("diverged", "not converged")
     with pytest.raises(ShapeMismatchError, match="x and y"):
         seam_shift(a, b[:-1], TRANSFORM, ("x", "y"))
+    with pytest.raises(GridError, match="north-up"):
+        seam_shift(a, b, Affine(RES, 0.0, 0.0, 0.0, RES, 0.0), ("x", "y"))
+
+
+def test_seam_shift_outcome_at_the_iteration_cap(monkeypatch):
+    monkeypatch.setattr(seams, "SEAM_MAX_ITERATIONS", 1)
+    s = seam_shift(*_pair(0.3, -0.2), TRANSFORM)
+    # with robust weights a match cannot converge at its first iteration
+    assert s.status == "not converged" and s.iterations == 1 and math.isnan(s.e)
+    assert set(s.segment_status) == {"not converged"}
+
+
+def test_the_demo_re_exports_the_seam_measurement():
+    import geoblock.workflows.demo as demo
+
+    assert demo.seam_shift is seam_shift and demo.SeamShift is seams.SeamShift
+    assert {"seam_shift", "SeamShift"} <= set(demo.__all__)
+
+
+def test_orthos_on_a_common_grid_and_their_overlaps():
+    rng = np.random.default_rng(2)
+    one, two, far = (rng.uniform(1, 2, (30, 40)) for _ in range(3))
+    t_one = Affine(RES, 0.0, 1000.0, 0.0, -RES, 5000.0)
+    t_two = Affine(RES, 0.0, 1000.0 + 25 * RES, 0.0, -RES, 5000.0 - 4 * RES)  # 4 rows down
+    t_far = Affine(RES, 0.0, 1000.0 + 70 * RES, 0.0, -RES, 5000.0)
+    grids, transform = on_common_grid({"one": (one, t_one), "two": (two, t_two),
+                                       "far": (far, t_far)})
+    assert tuple(transform)[:6] == (RES, 0.0, 1000.0, 0.0, -RES, 5000.0)
+    assert all(g.shape == (34, 110) and g.dtype == np.float32 for g in grids.values())
+    np.testing.assert_array_equal(grids["two"][4:34, 25:65], two.astype(np.float32))
+    assert np.isnan(grids["two"][:4]).all() and np.isnan(grids["two"][:, :25]).all()
+    # one and two share 30 - 4 rows x 40 - 25 columns; far touches neither
+    assert overlapping_pairs(grids) == [("one", "two")]
+    assert overlapping_pairs(grids, min_pixels=26 * 15 + 1) == []
+    found = smoothed_overlap(grids["one"], grids["two"], 2)
+    assert found is not None and found.origin == (2, 23)
+    assert found.a.shape == found.b.shape == found.core.shape == (26 + 4, 15 + 4)
+    assert found.core.sum() == (26 - 4) * (15 - 4)  # 2 px inside the overlap's edges
+    assert smoothed_overlap(grids["one"], grids["far"], 2) is None
+    with pytest.raises(MosaicError, match="two.*pixel-aligned"):
+        on_common_grid({"one": (one, t_one), "two": (two, t_two @ Affine.translation(0.5, 0))})
+    with pytest.raises(MosaicError, match="two.*resolution"):
+        on_common_grid({"one": (one, t_one), "two": (two, t_two @ Affine.scale(2.0))})
+    with pytest.raises(MosaicError, match="no ortho"):
+        on_common_grid({})
 
 
 @pytest.mark.slow

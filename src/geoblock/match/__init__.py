@@ -8,8 +8,14 @@
   :func:`~geoblock.match.geometry.predict` (the models' prediction through the DEM and the
   epipolar direction), :func:`~geoblock.match.consistency.consistent` (the outlier test: a
   low-order image-space bias plus the height parallax along the epipolar direction),
-  :func:`~geoblock.match.refine.refine_matches` (sub-pixel normalised cross-correlation in the
-  models' local geometry).
+  :func:`~geoblock.match.refine.refine_matches` (sub-pixel normalised cross-correlation, then
+  least-squares matching, in the models' local geometry);
+* :func:`least_squares_match` - least-squares matching (Gruen 1985: shift, radiometric gain
+  and offset, by Gauss-Newton, with a per-patch :class:`LsmStatus`), the one solver of the
+  refinement and of the seam measurement;
+* :func:`seam_shift` - the misregistration of two neighbouring orthos measured on their pixels
+  in their overlap (:class:`SeamShift`, :mod:`geoblock.match.seams`; ``geoblock demo``'s
+  seams).
 
 OpenCV (``cv2``) and scipy are imported when first used.
 """
@@ -24,6 +30,7 @@ if TYPE_CHECKING:
     from geoblock.match.consistency import Bias, Consistency, consensus, consistent, fit_bias
     from geoblock.match.features import Keypoints, detect_keypoints
     from geoblock.match.geometry import Overlap, Prediction, local_affine, overlap, predict
+    from geoblock.match.lsm import LsmSolution, LsmStatus, least_squares_match
     from geoblock.match.pipeline import (
         DEFAULT_SEARCH_PX,
         REJECTIONS,
@@ -36,6 +43,7 @@ if TYPE_CHECKING:
         write_tie_points,
     )
     from geoblock.match.refine import Refined, RefineStatus, refine_matches
+    from geoblock.match.seams import SeamShift, seam_shift
 
 _LAZY = {
     "Bias": "geoblock.match.consistency",
@@ -50,6 +58,9 @@ _LAZY = {
     "local_affine": "geoblock.match.geometry",
     "overlap": "geoblock.match.geometry",
     "predict": "geoblock.match.geometry",
+    "LsmSolution": "geoblock.match.lsm",
+    "LsmStatus": "geoblock.match.lsm",
+    "least_squares_match": "geoblock.match.lsm",
     "DEFAULT_SEARCH_PX": "geoblock.match.pipeline",
     "REJECTIONS": "geoblock.match.pipeline",
     "MatchImage": "geoblock.match.pipeline",
@@ -62,6 +73,8 @@ _LAZY = {
     "Refined": "geoblock.match.refine",
     "RefineStatus": "geoblock.match.refine",
     "refine_matches": "geoblock.match.refine",
+    "SeamShift": "geoblock.match.seams",
+    "seam_shift": "geoblock.match.seams",
 }
 
 __getattr__, __dir__ = lazy_names(__name__, _LAZY)
@@ -71,6 +84,8 @@ __all__ = [
     "Consistency",
     "DEFAULT_SEARCH_PX",
     "Keypoints",
+    "LsmSolution",
+    "LsmStatus",
     "MatchImage",
     "MatchOptions",
     "Overlap",
@@ -79,16 +94,19 @@ __all__ = [
     "REJECTIONS",
     "RefineStatus",
     "Refined",
+    "SeamShift",
     "TiePoints",
     "consensus",
     "consistent",
     "detect_keypoints",
     "fit_bias",
+    "least_squares_match",
     "local_affine",
     "match_block",
     "match_images",
     "overlap",
     "predict",
     "refine_matches",
+    "seam_shift",
     "write_tie_points",
 ]

@@ -16,13 +16,15 @@ does not blur the comparison. B is resampled with the bicubic kernel of the orth
    peak gives its sub-pixel vertex; a peak that is not a maximum, or a ridge (the smaller
    curvature below ``min_curvature_ratio`` times the larger: a straight edge, whose position
    along itself is undetermined) is refused.
-2. **Least-squares matching** (Gruen 1985), from that vertex: Gauss-Newton on the shift ``d``
-   and a radiometric gain and offset, minimising ``sum (T(u) - g0 - g1 B(b + J (u + d)))^2``
-   over the patch, until the shift's update is below ``tolerance_px`` (at most
-   ``max_iterations``). Unlike a peak fitted to correlations, which a patch's asymmetry
-   biases by a tenth of a pixel, the least-squares solution is unbiased where the two
-   patches are the same signal (0.02 px on a smooth image shifted by a known amount); its
-   covariance gives each match's precision.
+2. **Least-squares matching** (Gruen 1985; the solver of :mod:`geoblock.match.lsm`), from
+   that vertex: Gauss-Newton on the shift ``d`` and a radiometric gain and offset (started
+   from the patches' moments), minimising ``sum w(u) (T(u) - g0 - g1 B(b + J (u + d)))^2``
+   over the patch with a Gaussian window ``w`` (:data:`WINDOW_SIGMA`), until the shift's
+   update is at most ``tolerance_px`` (at most ``max_iterations``; the solution must stay
+   within :data:`MAX_SHIFT_PX` of the correlation peak). Unlike a peak fitted to
+   correlations, which a patch's asymmetry biases by a tenth of a pixel, the least-squares
+   solution is unbiased where the two patches are the same signal (0.02 px on a smooth image
+   shifted by a known amount); its covariance gives each match's precision.
 
 Per match the outcome is a :class:`RefineStatus`. Vectorised over matches in chunks (no loop
 over points or pixels).
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geoblock.errors import MatchError
+from geoblock.match.lsm import LsmStatus, least_squares_match
 
 __all__ = ["RefineStatus", "Refined", "refine_matches"]
 
@@ -50,9 +53,11 @@ class RefineStatus(enum.IntEnum):
     LOW_SCORE = 1
     #: the peak left the search area (moved more than ``search_px`` from the start)
     EDGE = 2
-    #: a patch reaches out of the image window or into nodata, or has no contrast
+    #: a patch reaches out of the image window or into nodata, or has no contrast (the
+    #: least-squares matching's normal equations are ill-conditioned: :data:`MAX_CONDITION`)
     NO_DATA = 3
-    #: still moving after ``max_iterations``
+    #: still moving after ``max_iterations``, or the least-squares matching left the
+    #: correlation peak (beyond :data:`MAX_SHIFT_PX`)
     MAX_ITERATIONS = 4
     #: the correlation peak is a ridge (a straight edge: its position along the edge is
     #: undetermined) or not a maximum
@@ -211,89 +216,58 @@ def _ncc_walk(template: np.ndarray, pix_b: np.ndarray, row: np.ndarray, col: np.
 def _lsm(template: np.ndarray, pix_b: np.ndarray, row: np.ndarray, col: np.ndarray,
          jac: np.ndarray, start: np.ndarray, half: int, max_iterations: int,
          tolerance: float) -> tuple[np.ndarray, ...]:
-    """Stage 2: least-squares matching (Gruen 1985) of the template with B, for the shift
-    ``d`` (template-grid pixels) and a radiometric gain and offset, by Gauss-Newton from
-    ``start``: minimise ``sum (T(u) - g0 - g1 B(b + J (u + d)))^2`` over the patch.
+    """Stage 2: least-squares matching of the template with B
+    (:func:`geoblock.match.lsm.least_squares_match`), for the shift ``d`` (template-grid
+    pixels) and a radiometric gain and offset (from the moments), from ``start``: minimise
+    ``sum w(u) (T(u) - g0 - g1 B(b + J (u + d)))^2`` over the patch, ``w`` a Gaussian window.
 
     Returns ``d`` (n, 2), its standard deviation (n,) (the larger of the two axes',
-    template-grid pixels), the NCC at ``d`` (n,), and per point whether it converged and
-    whether it had data throughout.
+    template-grid pixels; NaN without data or texture), the NCC at ``d`` (n,), and the
+    :class:`~geoblock.match.lsm.LsmStatus` of each point.
     """
-    n = row.size
     q = np.arange(-(half + 1), half + 2, dtype=float)  # one more pixel for the gradients
-    d = start.copy()
-    g0 = np.zeros(n)
-    g1 = np.ones(n)
-    converged = np.zeros(n, bool)
-    has_data = np.ones(n, bool)
-    sigma = np.full(n, np.nan)
-    active = np.ones(n, bool)
-    t = template.reshape(n, -1)
-    # a Gaussian window: the centre, where the match is wanted, counts most (over relief, the
-    # patch's edges see other parallaxes)
-    u = q[1:-1]
-    weight = np.exp(-0.5 * (u[:, None] ** 2 + u[None, :] ** 2) / (WINDOW_SIGMA * half) ** 2
-                    ).ravel()
-    for it in range(max_iterations):
-        idx = np.flatnonzero(active)
-        if not idx.size:
-            break
-        dr, dc = _affine_grid(jac[idx], q, d[idx])
+
+    def sample(idx: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """B on the template grid mapped by J and shifted, and its central differences along
+        the template's rows and columns, ``(m, P)`` each."""
+        dr, dc = _affine_grid(jac[idx], q, shift)
         big = _sample(pix_b, row[idx, None, None] + dr, col[idx, None, None] + dc)
         g = big[:, 1:-1, 1:-1]
         gr = 0.5 * (big[:, 2:, 1:-1] - big[:, :-2, 1:-1])  # d/d(template row)
         gc = 0.5 * (big[:, 1:-1, 2:] - big[:, 1:-1, :-2])  # d/d(template col)
         m = idx.size
-        g, gr, gc = (v.reshape(m, -1) for v in (g, gr, gc))
-        finite = np.isfinite(g).all(axis=1) & np.isfinite(gr).all(axis=1) \
-            & np.isfinite(gc).all(axis=1)
-        if it == 0:  # radiometry from the moments (of the points with data)
-            ok0 = finite & np.isfinite(t[idx]).all(axis=1)
-            ti, gi = t[idx][ok0], g[ok0]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                gain = ti.std(axis=1) / gi.std(axis=1)
-            gain = np.where(np.isfinite(gain) & (gain > 0), gain, 1.0)
-            g1[idx[ok0]] = gain
-            g0[idx[ok0]] = ti.mean(axis=1) - gain * gi.mean(axis=1)
-        design = np.stack([np.ones_like(g), g, g1[idx, None] * gr, g1[idx, None] * gc], axis=-1)
-        resid = t[idx] - g0[idx, None] - g1[idx, None] * g
-        design[~finite] = 0.0
-        resid[~finite] = 0.0
-        normal = np.einsum("npi,p,npj->nij", design, weight, design)
-        normal[~finite] = np.eye(4)
-        rhs = np.einsum("npi,p,np->ni", design, weight, resid)
-        with np.errstate(all="ignore"):
-            ok = finite & (np.linalg.cond(normal) < 1e12)
-        normal[~ok] = np.eye(4)
-        rhs[~ok] = 0.0
-        delta = np.linalg.solve(normal, rhs[:, :, None])[:, :, 0]
-        g0[idx] += delta[:, 0]
-        g1[idx] += delta[:, 1]
-        d[idx] += delta[:, 2:]
-        done = ok & (np.abs(delta[:, 2:]).max(axis=1) <= tolerance)
-        converged[idx[done]] = True
-        has_data[idx[~ok]] = False
-        dof = max(float(weight.sum()) - 4.0, 1.0)
-        s0 = (weight * resid**2).sum(axis=1) / dof
-        cov = np.linalg.inv(normal)
-        sigma[idx] = np.sqrt(s0 * np.maximum(cov[:, 2, 2], cov[:, 3, 3]))
-        active[idx[done | ~ok]] = False
-        # a shift beyond the NCC peak's cell: the iteration left the peak
-        active[np.abs(d).max(axis=1) > 1.5] = False
+        return g.reshape(m, -1), gr.reshape(m, -1), gc.reshape(m, -1)
+
+    # a Gaussian window: the centre, where the match is wanted, counts most (over relief, the
+    # patch's edges see other parallaxes)
+    u = q[1:-1]
+    weight = np.exp(-0.5 * (u[:, None] ** 2 + u[None, :] ** 2) / (WINDOW_SIGMA * half) ** 2
+                    ).ravel()
+    solution = least_squares_match(
+        template.reshape(row.size, -1), sample, start, weight=weight, radiometry="moments",
+        max_iterations=max_iterations, tolerance_px=tolerance, max_shift_px=MAX_SHIFT_PX,
+        shift_norm="max", max_condition=MAX_CONDITION)
+    d = solution.shift
+    sigma = np.sqrt(np.maximum(solution.covariance[:, 0, 0], solution.covariance[:, 1, 1]))
     # the NCC at the final shift
-    dr, dc = _affine_grid(jac, q[1:-1], d)
+    dr, dc = _affine_grid(jac, u, d)
     final = _sample(pix_b, row[:, None, None] + dr, col[:, None, None] + dc)
     centred = template - template.mean(axis=(1, 2), keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         unit = centred / np.sqrt((centred**2).sum(axis=(1, 2)))[:, None, None]
     score = _correlate(unit, final)[:, 0, 0]
-    converged &= np.abs(d).max(axis=1) <= 1.5
-    return d, sigma, score, converged, has_data & np.isfinite(score)
+    return d, sigma, score, solution.status
 
 
 _PENDING = np.uint8(255)
 #: Standard deviation of the least-squares matching's Gaussian window, in patch half-sizes.
 WINDOW_SIGMA = 0.5
+#: Largest row or column distance of the least-squares matching's solution from the
+#: correlation peak, template-grid pixels: beyond it the iteration left the peak's 3 x 3 cells.
+MAX_SHIFT_PX = 1.5
+#: Largest condition number of the least-squares matching's column-equilibrated normal
+#: matrix: above it the patch has no texture to match.
+MAX_CONDITION = 1e8
 
 
 def _refine_chunk(pix_a: np.ndarray, pix_b: np.ndarray, ra: np.ndarray, ca: np.ndarray,
@@ -316,15 +290,16 @@ def _refine_chunk(pix_a: np.ndarray, pix_b: np.ndarray, ra: np.ndarray, ca: np.n
     sigma = np.full(n, np.nan)
     idx = np.flatnonzero(status == _PENDING)
     if idx.size:
-        d, sig, sc, conv, has = _lsm(raw[idx], pix_b, row[idx], col[idx], jac[idx],
-                                     vertex[idx], half, max_iterations, tolerance)
+        d, sig, sc, lsm = _lsm(raw[idx], pix_b, row[idx], col[idx], jac[idx], vertex[idx],
+                               half, max_iterations, tolerance)
         shift = np.einsum("nij,nj->ni", jac[idx], d)
         row[idx] += shift[:, 0]
         col[idx] += shift[:, 1]
         score[idx] = sc
         sigma[idx] = sig
-        status[idx] = np.where(~has, RefineStatus.NO_DATA, np.where(
-            ~conv, RefineStatus.MAX_ITERATIONS, np.where(
+        no_data = np.isin(lsm, (LsmStatus.NO_DATA, LsmStatus.NO_TEXTURE)) | ~np.isfinite(sc)
+        status[idx] = np.where(no_data, RefineStatus.NO_DATA, np.where(
+            lsm != LsmStatus.CONVERGED, RefineStatus.MAX_ITERATIONS, np.where(
                 sc >= min_score, RefineStatus.CONVERGED, RefineStatus.LOW_SCORE)))
     failed = status != RefineStatus.CONVERGED
     row[failed] = rb[failed]

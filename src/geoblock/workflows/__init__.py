@@ -6,7 +6,8 @@
   on-board models' accuracy (:mod:`geoblock.workflows.scenario`);
 * :func:`run_demo` simulates a three-strip block, adjusts it in single and block mode (DEM
   control), orthorectifies and mosaics the strips with their on-board and their adjusted
-  models, measures the seams and reports before against after (:mod:`geoblock.workflows.demo`).
+  models, measures the seams (:mod:`geoblock.match.seams`) and reports before against after
+  (:mod:`geoblock.workflows.demo`).
 
 Every file is read and written through :mod:`geoblock.io`; the computations are those of the
 libraries (a workflow only sequences them, reports progress and names the files).

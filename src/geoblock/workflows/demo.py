@@ -21,11 +21,12 @@
    ``contribution.tif``);
 6. **measure and report**: every model set's ground errors at the GCPs and ICPs from the
    simulated truth and its ICTP discrepancies, the seamline discrepancies measured ON THE
-   IMAGES (:class:`SeamShift`: the shift between neighbouring orthos in their overlap, by
-   robust least-squares matching, :func:`seam_shift`; between the true-model orthos it is
-   the measurement's own error), ``report.md`` with the before/after tables, ``results.json``
-   with the same numbers, and the figures ``quicklook.png`` (before and after mosaics),
-   ``errors.png`` (error vectors) and ``seams.png`` (the overlaps' differences).
+   IMAGES (:class:`~geoblock.match.seams.SeamShift`: the shift between neighbouring orthos in
+   their overlap, by robust least-squares matching, :func:`~geoblock.match.seams.seam_shift`;
+   between the true-model orthos it is the measurement's own error), ``report.md`` with the
+   before/after tables, ``results.json`` with the same numbers, and the figures
+   ``quicklook.png`` (before and after mosaics), ``errors.png`` (error vectors) and
+   ``seams.png`` (the overlaps' differences).
 
 Re-running into the same OUTDIR replaces the previous demo's outputs. A demo output is
 recognised by the marker file :data:`DEMO_MARKER` (``OUTDIR/.geoblock-demo``), which
@@ -49,7 +50,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from geoblock.errors import DemoOutdirError, GeoblockIOError, ShapeMismatchError
+from geoblock.errors import DemoOutdirError, GeoblockIOError
 from geoblock.io import open_dem, open_image, write_ortho
 from geoblock.io.files import (
     make_directory,
@@ -58,6 +59,16 @@ from geoblock.io.files import (
     save_figure,
     write_json,
     write_text,
+)
+from geoblock.match.seams import (
+    SEAM_MARGIN_PX,
+    SEAM_SEGMENTS,
+    SEAM_SMOOTHING_PX,
+    SeamShift,
+    on_common_grid,
+    overlapping_pairs,
+    seam_shift,
+    smoothed_overlap,
 )
 from geoblock.pixels import image_domain
 from geoblock.simulate.scenario import demo_scenario
@@ -71,7 +82,7 @@ if TYPE_CHECKING:
     from geoblock.adjust.statistics import AccuracyStats, IctpDiscrepancies, PointErrors
     from geoblock.dem.protocol import DemSource
     from geoblock.models.protocol import SensorModel
-    from geoblock.typing import Float64Array, IndexArray, StrArray
+    from geoblock.typing import Float64Array
 
 __all__ = [
     "DEMO_MARKER",
@@ -79,11 +90,11 @@ __all__ = [
     "MODEL_SETS",
     "SEAM_SETS",
     "DemoResult",
-    "SeamShift",
+    "SeamShift",  # re-exported from geoblock.match.seams, where it is defined
     "is_demo_outdir",
     "prepare_demo_outdir",
     "run_demo",
-    "seam_shift",
+    "seam_shift",  # re-exported from geoblock.match.seams
 ]
 
 #: The marker file :func:`run_demo` writes first in an OUTDIR it may replace on the next run.
@@ -108,32 +119,6 @@ Delete this file to protect the directory from being replaced.
 """
 
 _STAGES = 6
-
-# ---- the seam matcher (:class:`SeamShift`)
-#: Gaussian smoothing of both orthos before matching, pixels (sigma). The simulated ground
-#: texture has crop rows near the pixel size, which each strip samples differently (aliasing,
-#: the moire in ``seams.png``): those patterns differ between the strips and would pull the
-#: match; smoothed, and down-weighted by the robust matching, they pull it less.
-SEAM_SMOOTHING_PX = 3.0
-#: Constant of the matcher's Cauchy weights, in robust standard deviations of the residuals.
-SEAM_ROBUST_K = 2.0
-#: Segments of an overlap along the seam, each matched on its own (the shift along the seam).
-SEAM_SEGMENTS = 6
-#: Fewest overlap pixels (after the margin is taken off) for a match.
-SEAM_MIN_PIXELS = 150
-#: Largest shift the matcher follows, pixels: beyond it the match is "diverged".
-SEAM_MAX_SHIFT_PX = 2.0
-#: Converged when the shift changes by less than this in an iteration, pixels.
-SEAM_TOLERANCE_PX = 1e-3
-#: Iteration cap of the matcher (Gauss-Newton).
-SEAM_MAX_ITERATIONS = 20
-#: Largest condition number of the matcher's column-equilibrated Jacobian (its normal
-#: matrix's is the square): above it the overlap has no texture to match ("no texture").
-_SEAM_MAX_CONDITION = 1e4
-#: Overlap pixels closer than this to the edge of either ortho are not matched: the smoothing
-#: (2 sigma), the largest shift and the cubic interpolation's support stay inside both orthos.
-_SEAM_MARGIN_PX = math.ceil(2 * SEAM_SMOOTHING_PX) + math.ceil(SEAM_MAX_SHIFT_PX) + 1
-
 
 def is_demo_outdir(outdir: str | os.PathLike[str]) -> bool:
     """Whether ``outdir`` is a directory written by a previous :func:`run_demo`.
@@ -184,109 +169,6 @@ def prepare_demo_outdir(outdir: str | os.PathLike[str], *, force: bool = False) 
 
 
 # ================================================================================ results
-@dataclass(frozen=True, eq=False)
-class SeamShift:
-    """The shift between two neighbouring orthos in their overlap, measured on the images.
-
-    Both orthos are on one map grid (the mosaic's). Their overlap (the pixels both have,
-    less a margin of :data:`_SEAM_MARGIN_PX` from either edge) is matched by least squares
-    (Gruen's least-squares matching, translation plus a radiometric gain and offset, with
-    Cauchy weights of the residuals, on both orthos smoothed by a Gaussian of
-    :data:`SEAM_SMOOTHING_PX`; :func:`seam_shift`): the translation ``d``
-    that makes ``b(x + d)`` look like ``a(x)``, i.e. where ortho ``b`` shows what ortho ``a``
-    shows at ``x``. Iterations stop when the shift changes by less than
-    :data:`SEAM_TOLERANCE_PX` (cap :data:`SEAM_MAX_ITERATIONS`). The whole overlap is
-    matched, and each of :data:`SEAM_SEGMENTS` segments along the seam on its own.
-
-    The shift in metres has the sign of an ICTP discrepancy
-    (:class:`~geoblock.adjust.IctpDiscrepancies`: from ``b`` minus from ``a``): for two
-    orthos made with erroneous models it is, in the overlap, ``b``'s model error minus
-    ``a``'s, which the ICTP discrepancies sample at a few points.
-
-    Attributes
-    ----------
-    images : (str, str)
-        ``(a, b)``.
-    e, n : float
-        Shift over the whole overlap, metres along the map's x (east) and y (north); NaN
-        unless ``status`` is ``"converged"``.
-    pixels : int
-        Overlap pixels matched.
-    iterations : int
-    status : str
-        ``"converged"``, ``"not converged"`` (iteration cap), ``"diverged"`` (beyond
-        :data:`SEAM_MAX_SHIFT_PX`), ``"no texture"`` or ``"too few pixels"``.
-    segment_x, segment_y : ndarray, (K,)
-        Centre of each segment along the seam, map coordinates (CRS units, metres).
-    segment_e, segment_n : ndarray, (K,)
-        Each segment's shift, metres (NaN where it did not converge).
-    segment_status : ndarray of str, (K,)
-    """
-
-    images: tuple[str, str]
-    e: float
-    n: float
-    pixels: int
-    iterations: int
-    status: str
-    segment_x: Float64Array
-    segment_y: Float64Array
-    segment_e: Float64Array
-    segment_n: Float64Array
-    segment_status: StrArray
-
-    @property
-    def shift(self) -> float:
-        """Length of the whole-overlap shift, metres."""
-        return math.hypot(self.e, self.n)
-
-    @property
-    def segment_rms(self) -> float:
-        """RMS of the segments' shift lengths, metres (NaN when no segment converged): the
-        misregistration along the seam, its variation included."""
-        d2 = self.segment_e**2 + self.segment_n**2
-        d2 = d2[np.isfinite(d2)]
-        return float(np.sqrt(d2.mean())) if d2.size else math.nan
-
-    def minus(self, reference: SeamShift) -> SeamShift:
-        """This shift less ``reference``'s, over the whole overlap and segment by segment.
-
-        With ``reference`` measured between orthos of the same images that line up (made
-        with the TRUE models, in simulation), what the matching finds in the images' content
-        alone (:func:`seam_shift` on aliased texture, e.g.) cancels to first order: the
-        difference is the misregistration the models cause. A value is NaN unless both
-        converged; the status is this one's when the reference converged, else the
-        reference's (segments alike); pixels and iterations are this one's.
-
-        Raises
-        ------
-        ShapeMismatchError
-            The two have different numbers of segments (one has none: too few pixels).
-        """
-        if self.segment_e.shape != reference.segment_e.shape:
-            raise ShapeMismatchError(
-                f"SeamShift.minus: {self.images[0]} & {self.images[1]} has "
-                f"{self.segment_e.size} segments, the reference {reference.segment_e.size}")
-        ok = reference.segment_status == "converged"
-        return SeamShift(
-            self.images, self.e - reference.e, self.n - reference.n, self.pixels,
-            self.iterations, self.status if reference.status == "converged"
-            else reference.status, self.segment_x, self.segment_y,
-            self.segment_e - reference.segment_e, self.segment_n - reference.segment_n,
-            np.where(ok, self.segment_status, reference.segment_status))
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-safe (NaN as None)."""
-        return {"images": list(self.images), "e": _json(self.e), "n": _json(self.n),
-                "shift": _json(self.shift), "segment_rms": _json(self.segment_rms),
-                "pixels": self.pixels, "iterations": self.iterations, "status": self.status,
-                "segments": [{"x": _json(x), "y": _json(y), "e": _json(e), "n": _json(n),
-                              "status": str(s)}
-                             for x, y, e, n, s in zip(self.segment_x, self.segment_y,
-                                                      self.segment_e, self.segment_n,
-                                                      self.segment_status, strict=True)]}
-
-
 @dataclass(frozen=True, eq=False)
 class DemoResult:
     """What :func:`run_demo` made.
@@ -513,10 +395,10 @@ def run_demo(
     ictp = {key: ictp_accuracy(mm, meas.id[sel], meas.image[sel], meas.row[sel],
                                meas.col[sel], dem, warn=False)
             for key, mm in models.items()}
-    frames = {"true": _on_common_grid(reference),
-              "onboard": _on_common_grid({i: _read_band(p) for i, p in orthos_onboard.items()}),
-              "block": _on_common_grid({i: _read_band(p) for i, p in orthos.items()})}
-    pairs = _overlapping_pairs(frames["block"][0])
+    frames = {"true": on_common_grid(reference),
+              "onboard": on_common_grid({i: _read_band(p) for i, p in orthos_onboard.items()}),
+              "block": on_common_grid({i: _read_band(p) for i, p in orthos.items()})}
+    pairs = overlapping_pairs(frames["block"][0])
     seams = {key: {p: seam_shift(grids[p[0]], grids[p[1]], transform, p) for p in pairs}
              for key, (grids, transform) in frames.items()}
     discrepancies = {key: {p: seams[key][p].minus(seams["true"][p]) for p in pairs}
@@ -624,7 +506,7 @@ def _truth_errors(models: Mapping[str, SensorModel], sim: ScenarioResult) -> Poi
                           sim.points)
 
 
-# ================================================================================ seams
+# ================================================================================ reading
 def _read_band(path: Path) -> tuple[Float64Array, Affine]:
     """The first band of a georeferenced image as float64 (NaN where nodata), its transform."""
     source = open_image(path)
@@ -634,179 +516,6 @@ def _read_band(path: Path) -> tuple[Float64Array, Affine]:
         nodata = np.isnan(band) if np.isnan(source.nodata) else band == source.nodata
         values[nodata] = np.nan
     return values, source.transform
-
-
-def _on_common_grid(bands: Mapping[str, tuple[Float64Array, Affine]],
-                    ) -> tuple[dict[str, np.ndarray], Affine]:
-    """Orthos on the union of their grids as float32 (NaN where one has no pixel), and the
-    union's transform.
-
-    The orthos are pixel-aligned (grids of one resolution snapped to its multiples,
-    :meth:`~geoblock.ortho.OutputGrid.for_model`): each is placed by an integer offset.
-    """
-    from affine import Affine
-
-    transforms = [t for _, t in bands.values()]
-    res_x, res_y = transforms[0].a, transforms[0].e  # res_y < 0: north-up
-    x0 = min(t.c for t in transforms)
-    y0 = max(t.f for t in transforms)
-    rows = max(round((t.f - y0) / res_y) + b.shape[0] for b, t in bands.values())
-    cols = max(round((t.c - x0) / res_x) + b.shape[1] for b, t in bands.values())
-    grids: dict[str, np.ndarray] = {}
-    for image_id, (band, t) in bands.items():
-        r0, c0 = round((t.f - y0) / res_y), round((t.c - x0) / res_x)
-        full = np.full((rows, cols), np.nan, dtype=np.float32)  # float64 on the crops only
-        full[r0:r0 + band.shape[0], c0:c0 + band.shape[1]] = band
-        grids[image_id] = full
-    return grids, Affine(res_x, 0.0, x0, 0.0, res_y, y0)
-
-
-def _overlapping_pairs(grids: Mapping[str, np.ndarray]) -> list[tuple[str, str]]:
-    """Pairs of images (in the mapping's order) whose valid pixels overlap by at least
-    :data:`SEAM_MIN_PIXELS`."""
-    ids = list(grids)
-    valid = {i: np.isfinite(g) for i, g in grids.items()}
-    return [(a, b) for k, a in enumerate(ids) for b in ids[k + 1:]
-            if np.count_nonzero(valid[a] & valid[b]) >= SEAM_MIN_PIXELS]
-
-
-def _overlap(a: np.ndarray, b: np.ndarray, margin: int,
-             ) -> tuple[Float64Array, Float64Array, np.ndarray, tuple[int, int]] | None:
-    """The overlap of two orthos on one grid, cropped to its bounding box (plus ``margin``):
-    both smoothed by :data:`SEAM_SMOOTHING_PX` (NaN filled with the mean first), the pixels
-    at least ``margin`` from the edge of either (bool), and the crop's first pixel. None
-    without overlap."""
-    from scipy import ndimage
-
-    valid = np.isfinite(a) & np.isfinite(b)
-    if not valid.any():
-        return None
-    rows, cols = np.nonzero(valid)
-    r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, a.shape[0])
-    c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, a.shape[1])
-    crop = valid[r0:r1, c0:c1]
-    smooth = []
-    for image in (a[r0:r1, c0:c1].astype(np.float64), b[r0:r1, c0:c1].astype(np.float64)):
-        filled = np.where(crop, image, np.mean(image[crop]))
-        smooth.append(ndimage.gaussian_filter(filled, SEAM_SMOOTHING_PX))
-    # distance to the nearest pixel outside the overlap, the array's edge counting as outside
-    distance = ndimage.distance_transform_edt(np.pad(crop, 1))[1:-1, 1:-1]
-    return smooth[0], smooth[1], distance > margin, (r0, c0)
-
-
-def _match(a: Float64Array, b_spline: Float64Array, grad_row: Float64Array,
-           grad_col: Float64Array, rows: IndexArray, cols: IndexArray,
-           ) -> tuple[float, float, int, str]:
-    """Robust least-squares matching of ``b`` onto ``a`` at the pixels ``(rows, cols)``.
-
-    Solves ``a(x) = gain * b(x + d) + offset`` for the translation ``d = (d_row, d_col)``
-    (pixels), ``gain`` and ``offset`` by Gauss-Newton, ``b`` interpolated by cubic splines
-    (``b_spline``: its spline coefficients) and its gradient bilinearly. From the second
-    iteration on, each pixel is weighted by Cauchy's function of its residual in units of
-    :data:`SEAM_ROBUST_K` robust standard deviations (1.4826 x the median absolute
-    deviation), so that parts of the overlap that differ for other reasons than the shift
-    (aliased texture, occlusions, clouds in real images) do not pull it.
-
-    Returns
-    -------
-    d_row, d_col : float
-        Pixels (NaN unless converged).
-    iterations : int
-    status : str
-        ``converged``, ``not converged``, ``diverged``, ``no texture`` or ``too few pixels``.
-    """
-    from scipy import ndimage
-
-    n = rows.size
-    if n < SEAM_MIN_PIXELS:
-        return math.nan, math.nan, 0, "too few pixels"
-    target = a[rows, cols]
-    d = np.zeros(2)
-    gain, offset = 1.0, 0.0
-    weight = np.ones(n)
-    for iteration in range(1, SEAM_MAX_ITERATIONS + 1):
-        at = np.stack([rows + d[0], cols + d[1]])
-        values = ndimage.map_coordinates(b_spline, at, order=3, prefilter=False,
-                                         mode="nearest")
-        gr = ndimage.map_coordinates(grad_row, at, order=1, mode="nearest")
-        gc = ndimage.map_coordinates(grad_col, at, order=1, mode="nearest")
-        residual = target - (gain * values + offset)
-        if iteration > 1:
-            spread = 1.4826 * np.median(np.abs(residual - np.median(residual)))
-            u = residual / (SEAM_ROBUST_K * max(spread, 1e-12))
-            weight = 1.0 / (1.0 + u**2)
-        root = np.sqrt(weight)
-        jac = np.column_stack([gain * gr, gain * gc, values, np.ones(n)]) * root[:, None]
-        norms = np.linalg.norm(jac, axis=0)
-        if norms.min() == 0 or np.linalg.cond(jac / norms) > _SEAM_MAX_CONDITION:
-            return math.nan, math.nan, iteration, "no texture"
-        step = np.linalg.lstsq(jac, residual * root, rcond=None)[0]
-        d += step[:2]
-        gain += step[2]
-        offset += step[3]
-        if math.hypot(d[0], d[1]) > SEAM_MAX_SHIFT_PX:
-            return math.nan, math.nan, iteration, "diverged"
-        if iteration > 1 and np.abs(step[:2]).max() < SEAM_TOLERANCE_PX:
-            return float(d[0]), float(d[1]), iteration, "converged"
-    return math.nan, math.nan, SEAM_MAX_ITERATIONS, "not converged"
-
-
-def seam_shift(a: np.ndarray, b: np.ndarray, transform: Affine,
-               images: tuple[str, str] = ("a", "b")) -> SeamShift:
-    """The shift between two orthos in their overlap, measured on the images (:class:`SeamShift`).
-
-    Parameters
-    ----------
-    a, b : ndarray of float, (R, C)
-        The two orthos on one north-up map grid, NaN where each has no pixel.
-    transform : affine.Affine
-        The grid's geotransform (corner-based, rasterio order; pixel ``(row, col)`` has its
-        centre at ``transform * (col + 0.5, row + 0.5)``).
-    images : (str, str)
-        Their names.
-
-    Returns
-    -------
-    SeamShift
-        Status ``"too few pixels"`` (NaN shifts, no segment) when the orthos overlap by
-        fewer than :data:`SEAM_MIN_PIXELS` pixels inside the margin.
-    """
-    from scipy import ndimage
-
-    if a.shape != b.shape:
-        raise ShapeMismatchError(f"seam_shift: the orthos of {images[0]} and {images[1]} are "
-                                 f"not on one grid (shapes {a.shape} and {b.shape})")
-    empty = np.zeros(0)
-    found = _overlap(a, b, _SEAM_MARGIN_PX)
-    rows = cols = np.zeros(0, np.intp)
-    if found is not None:
-        a_s, b_s, core, (r0, c0) = found
-        rows, cols = np.nonzero(core)
-    if rows.size < SEAM_MIN_PIXELS:
-        return SeamShift(images, math.nan, math.nan, int(rows.size), 0, "too few pixels",
-                         empty, empty, empty, empty, np.zeros(0, str))
-    b_spline = ndimage.spline_filter(b_s, order=3)
-    grad_row, grad_col = (np.asarray(g, np.float64) for g in np.gradient(b_s))
-    dr, dc, iterations, status = _match(a_s, b_spline, grad_row, grad_col, rows, cols)
-    # segments along the seam: the overlap's principal axis cut into equal lengths
-    centred = np.column_stack([rows, cols]).astype(np.float64)
-    centred -= centred.mean(axis=0)
-    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
-    along = centred @ axis
-    edges = np.linspace(along.min(), along.max(), SEAM_SEGMENTS + 1)
-    segment = np.clip(np.searchsorted(edges, along, side="right") - 1, 0, SEAM_SEGMENTS - 1)
-    seg = np.full((SEAM_SEGMENTS, 4), np.nan)  # centre row, col, d_row, d_col
-    seg_status = np.empty(SEAM_SEGMENTS, dtype="<U14")
-    for k in range(SEAM_SEGMENTS):  # a few segments, each vectorised over its pixels
-        mine = segment == k
-        sr, sc = rows[mine], cols[mine]
-        seg[k, :2] = (sr.mean() + r0, sc.mean() + c0) if sr.size else (np.nan, np.nan)
-        *seg[k, 2:], _, seg_status[k] = _match(a_s, b_spline, grad_row, grad_col, sr, sc)
-    res_x, res_y = transform.a, -transform.e  # metres per column (east), per row (south)
-    x = transform.c + res_x * (seg[:, 1] + 0.5)  # pixel centres, north-up grid
-    y = transform.f - res_y * (seg[:, 0] + 0.5)
-    return SeamShift(images, dc * res_x, -dr * res_y, int(rows.size), iterations, status,
-                     x, y, seg[:, 3] * res_x, -seg[:, 2] * res_y, seg_status)
 
 
 # ================================================================================ figures
@@ -962,15 +671,14 @@ def _seam_figure(frames: Mapping[str, tuple[Mapping[str, np.ndarray], Affine]],
                 tuple[Float64Array, tuple[float, float, float, float]]] = {}
     for p, key in panels:
         grids, transform = frames[key]
-        found = _overlap(grids[p[0]], grids[p[1]], 0)
+        found = smoothed_overlap(grids[p[0]], grids[p[1]], 0)
         if found is None:
             continue
-        a_s, b_s, _, (r0, c0) = found
-        rows, cols = a_s.shape
+        (r0, c0), (rows, cols) = found.origin, found.a.shape
         both = _inside(grids[p[0]], grids[p[1]], r0, c0, (rows, cols))
         x0, y0 = transform.c + transform.a * c0, transform.f + transform.e * r0
         x1, y1 = x0 + transform.a * cols, y0 + transform.e * rows
-        crops[p, key] = (np.where(both, a_s - b_s, np.nan),
+        crops[p, key] = (np.where(both, found.a - found.b, np.nan),
                          (x0 / 1e3, x1 / 1e3, y1 / 1e3, y0 / 1e3))
     before = [np.abs(d[np.isfinite(d)]) for (_, key), (d, _) in crops.items()
               if key == "onboard"]
@@ -1155,7 +863,7 @@ def _report(sim: ScenarioResult, method: str, single: BlockResult, block: BlockR
         "The shift between neighbouring orthos in their overlap, measured on the pixels: "
         "robust least-squares matching of the overlap (translation, radiometric gain and "
         "offset, Cauchy weights; both orthos smoothed by a Gaussian of "
-        f"{SEAM_SMOOTHING_PX:g} px, pixels closer than {_SEAM_MARGIN_PX} px to either "
+        f"{SEAM_SMOOTHING_PX:g} px, pixels closer than {SEAM_MARGIN_PX} px to either "
         "ortho's edge left out), as ortho *b* minus ortho *a* (the sign of an ICTP "
         "discrepancy, whose mean is given beside it). The orthos made with the TRUE models "
         "(known in simulation only, not written) line up but for the DEM's errors: what the "
