@@ -312,10 +312,7 @@ def seed_outcome(seed: int, full: bool = False,
 def outcomes(seeds: Sequence[int], full: bool,
              progress: Callable[[str], None] | None = None) -> list[SeedOutcome]:
     """:func:`seed_outcome` of each seed, in order, with a progress line per seed."""
-    say = progress or (lambda message: None)
-    found = []
-    for k, seed in enumerate(seeds):
-        say(f"repetition {k + 1}/{len(seeds)} (seed {seed}): simulating the SPOT 1A scene")
-        found.append(seed_outcome(seed, full, say))
-        say(f"  seed {seed}: {found[-1].seconds:.1f} s")
-    return found
+    from geoblock_papers.registry import per_seed
+
+    return per_seed(seeds, lambda seed: seed_outcome(seed, full, progress), "the SPOT 1A scene",
+                    progress)

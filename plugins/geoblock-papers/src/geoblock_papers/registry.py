@@ -23,6 +23,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 from geoblock.errors import GeoblockError
 
@@ -178,3 +179,19 @@ def run_experiment(
     say(f"done in {seconds:.0f} s: {paths['report']}")
     return ExperimentResult(name, Path(outdir), paths["report"], paths["results"],
                             tuple(report.figures), seconds)
+
+
+def per_seed(seeds: Sequence[int], run_one: Callable[[int], Any], what: str,
+             progress: Callable[[str], None] | None = None) -> list[Any]:
+    """``run_one(seed)`` for each seed, in order, with a progress line per repetition.
+
+    ``what`` names what one repetition simulates (``"the SPOT 1A scene"``); ``run_one``'s
+    result must have a ``seconds`` attribute (wall time of the repetition).
+    """
+    say = progress or (lambda message: None)
+    found = []
+    for k, seed in enumerate(seeds):
+        say(f"repetition {k + 1}/{len(seeds)} (seed {seed}): simulating {what}")
+        found.append(run_one(int(seed)))
+        say(f"  seed {seed}: {found[-1].seconds:.1f} s")
+    return found
