@@ -443,14 +443,15 @@ def _shape_text(path: Path) -> str:
 
 
 def _ortho(raster: Path, model: SensorModel, dem: DemSource, crs: Any,
-           resolution: float) -> tuple[Any, Affine]:
-    """A raw image orthorectified with ``model`` on its own grid (UTM ``crs``, ``resolution``
-    metres, snapped to multiples of it: the orthos of a set are pixel-aligned): the lazy
-    ``(band, y, x)`` DataArray and the grid's transform."""
-    from geoblock.ortho import OutputGrid, orthorectify
+           resolution: float) -> Any:
+    """A raw image's orthorectification with ``model`` on its own grid (UTM ``crs``,
+    ``resolution`` metres, snapped to multiples of it: the orthos of a set are
+    pixel-aligned), planned (:class:`~geoblock.ortho.OrthoJob`: ``geoblock ortho``'s local
+    path, chunks on threads without a dask graph)."""
+    from geoblock.ortho import OutputGrid, ortho_job
 
     grid = OutputGrid.for_model(model, dem, crs=crs, resolution=resolution)
-    return orthorectify(str(raster), model, dem, grid), grid.transform
+    return ortho_job(str(raster), model, dem, grid)
 
 
 def _orthorectify(rasters: Mapping[str, Path], models: Mapping[str, SensorModel],
@@ -461,9 +462,9 @@ def _orthorectify(rasters: Mapping[str, Path], models: Mapping[str, SensorModel]
     make_directory(out / folder)
     paths: dict[str, Path] = {}
     for image_id, model in models.items():
-        data, _ = _ortho(rasters[image_id], model, dem, crs, resolution)
-        paths[image_id] = write_ortho(data, out / folder / f"{image_id}.tif")
-        say(f"{folder}/{image_id}.tif: {data.sizes['y']} x {data.sizes['x']} px")
+        job = _ortho(rasters[image_id], model, dem, crs, resolution)
+        paths[image_id] = write_ortho(job, out / folder / f"{image_id}.tif")
+        say(f"{folder}/{image_id}.tif: {job.shape[1]} x {job.shape[2]} px")
     return paths
 
 
@@ -475,12 +476,13 @@ def _reference_orthos(rasters: Mapping[str, Path], models: Mapping[str, SensorMo
     grid's transform."""
     out: dict[str, tuple[Float64Array, Affine]] = {}
     for image_id, model in models.items():
-        data, transform = _ortho(rasters[image_id], model, dem, crs, resolution)
-        band = np.asarray(data.values[0], np.float64)
-        fill = data.attrs.get("_FillValue")
-        if fill is not None and not np.isnan(fill):
-            band[band == fill] = np.nan
-        out[image_id] = band, transform
+        job = _ortho(rasters[image_id], model, dem, crs, resolution)
+        band = np.empty(job.shape[1:], np.float64)
+        for r0, r1, c0, c1 in job.windows():
+            band[r0:r1, c0:c1] = job.chunk((r0, r1, c0, c1))[0]
+        if not np.isnan(job.fill):
+            band[band == job.fill] = np.nan
+        out[image_id] = band, job.grid.transform
     return out
 
 
