@@ -100,3 +100,17 @@ def test_handles_per_thread_are_bounded(tmp_path, monkeypatch):
     cached_dataset(paths[0])
     assert opened[3].closed and not opened[2].closed
     assert int(cached_dataset(paths[1]).read(1)[0, 0]) == 1
+
+
+def test_read_band_is_float_with_nan_where_nodata(tmp_path):
+    from geoblock.io.images import open_image, read_band
+
+    pixels = np.arange(12, dtype=np.uint16).reshape(3, 4)
+    image = open_image(pixels, nodata=5)
+    band = read_band(image)
+    assert band.dtype == np.float64 and np.isnan(band[1, 1]) and np.isnan(band).sum() == 1
+    assert band[0, 0] == 0.0 and band[2, 3] == 11.0
+    window = read_band(image, (1, 3, 0, 2))
+    assert window.shape == (2, 2) and np.isnan(window[0, 1])
+    band[0, 0] = -1.0  # a copy: the image is untouched
+    assert read_band(image)[0, 0] == 0.0

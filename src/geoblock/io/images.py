@@ -52,8 +52,8 @@ if TYPE_CHECKING:
     import xarray as xr
     from rasterio.io import DatasetReader
 
-__all__ = ["ArrayImage", "ImageLike", "ImageSource", "OpenedImage", "open_image", "write_image",
-           "write_ortho"]
+__all__ = ["ArrayImage", "ImageLike", "ImageSource", "OpenedImage", "open_image", "read_band",
+           "write_image", "write_ortho"]
 
 PathLike = str | os.PathLike[str]
 
@@ -229,6 +229,30 @@ if TYPE_CHECKING:
 else:
     ImageLike = Any
 """What :func:`open_image` (hence :func:`geoblock.orthorectify`) accepts as an image."""
+
+def read_band(image: OpenedImage, window: tuple[int, int, int, int] | None = None,
+              band: int = 0) -> np.ndarray:
+    """One band of a window as float64, NaN where the image has no data (its nodata value).
+
+    Parameters
+    ----------
+    image : ImageSource or ArrayImage
+    window : (row_start, row_stop, col_start, col_stop), optional
+        Pixels; default the whole image.
+    band : int
+        0-based band index.
+
+    Returns
+    -------
+    ndarray, (R, C)
+        float64, a fresh array.
+    """
+    data = np.array(image.read(window)[band], dtype=np.float64)  # a copy, always
+    nodata = image.nodata
+    if nodata is not None and not math.isnan(nodata):
+        data[data == nodata] = np.nan  # a NaN nodata is NaN already
+    return data
+
 
 _ACCEPTED = ("a path (str or os.PathLike), an ImageSource or ArrayImage, an open rasterio "
              "dataset, an xarray.DataArray (band, y, x) or (y, x), or a numpy array (R, C) or "

@@ -493,14 +493,6 @@ class _Prepared:
     origin: tuple[int, int]  # image pixel of pixels[0, 0]
 
 
-def _read_pixels(image: OpenedImage, window: tuple[int, int, int, int]) -> np.ndarray:
-    data = image.read(window)[0].astype(np.float64)
-    nodata = image.nodata
-    if nodata is not None and math.isfinite(nodata):
-        data[data == nodata] = np.nan
-    return data
-
-
 def _union(windows: Sequence[tuple[int, int, int, int]]) -> tuple[int, int, int, int]:
     return (min(w[0] for w in windows), max(w[1] for w in windows),
             min(w[2] for w in windows), max(w[3] for w in windows))
@@ -911,6 +903,8 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         names = ", ".join(im.name for im in images)
         raise MatchError(f"no two of the images overlap on the DEM ({names}): check the "
                          "models, the DEM and that the images show the same area")
+    from geoblock.io.images import read_band
+
     searches = [_search_px(images[i], images[j], lap, options) for i, j, lap in pairs]
     prepared = []
     pad = 2 * (options.half_px + options.refine_search_px + 4)  # the correlation's patches
@@ -934,7 +928,7 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
                              "other images (a flat, saturated or nodata area?)")
         say(f"  {im.id}: {len(kp)} keypoints in rows {window[0]}-{window[1]}, cols "
             f"{window[2]}-{window[3]}")
-        prepared.append(_Prepared(im, kp, _read_pixels(im.image, window),
+        prepared.append(_Prepared(im, kp, read_band(im.image, window),
                                   (window[0], window[2])))
     results, sigmas = [], []
     for (i, j, lap), search in zip(pairs, searches, strict=True):

@@ -60,6 +60,7 @@ from geoblock.io.files import (
     write_json,
     write_text,
 )
+from geoblock.io.images import read_band
 from geoblock.match.seams import (
     SEAM_MARGIN_PX,
     SEAM_SEGMENTS,
@@ -512,12 +513,7 @@ def _truth_errors(models: Mapping[str, SensorModel], sim: ScenarioResult) -> Poi
 def _read_band(path: Path) -> tuple[Float64Array, Affine]:
     """The first band of a georeferenced image as float64 (NaN where nodata), its transform."""
     source = open_image(path)
-    band = source.read()[0]
-    values = band.astype(np.float64)
-    if source.nodata is not None:
-        nodata = np.isnan(band) if np.isnan(source.nodata) else band == source.nodata
-        values[nodata] = np.nan
-    return values, source.transform
+    return read_band(source), source.transform
 
 
 # ================================================================================ figures
