@@ -291,20 +291,14 @@ def method_models(sensors: Mapping[str, SimulatedSensor],
     """
     from geoblock_rpc.fit import fit_rpc
     from geoblock_rpc.model import RpcModel
-    from geoblock_spot.chenlee import SPOT1A_INTERIOR, Interior
     from geoblock_spot.fit import fit_chenlee
 
     out: dict[str, dict[str, Any]] = {"MBA": {}, "DG": {}, "RFM": {}}
     for i, sim in sensors.items():  # a loop over the three strips
         m = sim.onboard_model
-        # the strip's own interior (HRG focal length, the detector pitch of its GSD, its line
-        # period): the mba set's a-priori sigmas scale with the scene duration and swath
-        focal = SPOT1A_INTERIOR.focal_length_m
-        interior = Interior(pixel_size_m=focal * sim.spec.gsd_m / sim.spec.altitude_m,
-                            focal_length_m=focal,
-                            line_period_s=m.line_times.line_period_s)
-        out["MBA"][i] = fit_chenlee(m, interior=interior,
-                                    location_accuracy_m=m.location_accuracy_m).model
+        # the strip's own interior comes from the on-board model (geoblock_spot's
+        # source_interior): the mba set's a-priori sigmas scale with the scene's duration
+        out["MBA"][i] = fit_chenlee(m, location_accuracy_m=m.location_accuracy_m).model
         out["DG"][i] = m.with_parameter_set("dg")
         rpc, _ = fit_rpc(m, height_range=height_range, grid=(13, 13, 7), regularization=1e-6)
         out["RFM"][i] = geoblock.ImageCorrection(RpcModel(rpc, m.shape), order=1)
