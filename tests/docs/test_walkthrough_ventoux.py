@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import geoblock
 from geoblock.cli.main import build_cli
 from geoblock.io import read_points
 
@@ -125,7 +126,7 @@ def test_every_command_ran_and_wrote_its_files(walkthrough):
 
 
 def test_tie_points_and_their_residuals_are_what_the_page_says(walkthrough):
-    workdir, _ = walkthrough
+    workdir, outputs = walkthrough
     tp = read_points(workdir / "tp.csv")
     n_points = np.unique(tp["id"]).size
     assert abs(n_points - _quoted(r"(\d+) tie points, ")) <= 0.1 * n_points
@@ -139,9 +140,24 @@ def test_tie_points_and_their_residuals_are_what_the_page_says(walkthrough):
         assert rms < 0.2  # sub-pixel: the issue's requirement
         assert rms == pytest.approx(_quoted(r"\*\*(0\.\d+) px RMS\*\*"), abs=0.02)
     a0, _, _, b0, _, _ = (p["value"] for p in report["parameters"]["right"])
-    assert (a0, b0) == pytest.approx((_quoted(r"shift of \((-?\d+\.\d+),"),
-                                      _quoted(r"shift of \(-?\d+\.\d+, (-?\d+\.\d+)\)")),
-                                     abs=0.5)
+    assert (a0, b0) == pytest.approx((_quoted(r"a0, b0 = \((-?\d+\.\d+),"),
+                                      _quoted(r"a0, b0 = \(-?\d+\.\d+, (-?\d+\.\d+)\)")),
+                                     abs=0.1)
+    # the correction where the crops overlap: the adjusted model against the vendor RPC at
+    # the right image's tie points, which is also the offset geoblock match reported
+    adjusted = geoblock.open_model(workdir / "adjusted" / "models" / "right.json")
+    right = tp["image"] == "right"
+    ground = adjusted.model.backproject(tp["row"][right], tp["col"][right], 500.0)
+    r0, c0 = adjusted.model.project(ground.lon, ground.lat, ground.h)
+    r1, c1 = adjusted.project(ground.lon, ground.lat, ground.h)
+    shift = float(np.mean(r1 - r0)), float(np.mean(c1 - c0))
+    assert shift == pytest.approx((_quoted(r"shift of \((-?\d+\.\d+),"),
+                                   _quoted(r"shift of \(-?\d+\.\d+, (-?\d+\.\d+)\)")),
+                                  abs=0.02)
+    match_output = next(v for k, v in outputs.items() if k.startswith("match:"))
+    said = re.search(r"kept .*?models' offset ([-+]?[\d.]+), ([-+]?[\d.]+) px", match_output)
+    assert said, match_output
+    assert (float(said[1]), float(said[2])) == pytest.approx(shift, abs=0.1)
     assert report["parameters"]["left"] == []  # the reference image is held
 
 

@@ -124,3 +124,14 @@ def test_fit_bias_lowers_its_order_with_few_points_and_refuses_none():
     with pytest.raises(MatchError, match="order"):
         fit_bias(m["row"], m["col"], m["d_row"], m["d_col"], m["epi_row"], m["epi_col"],
                  order=3, sigma_px=1, sigma_h_m=1, centre=(0, 0), scale=1)
+
+
+def test_the_bias_mean_is_its_value_where_the_pixels_are_not_at_the_centre():
+    centre, scale = scale_of(SHAPE)
+    bias = Bias(np.array([[4.0, 0.8, -0.5], [-7.0, 0.3, 1.2]]), centre, scale)
+    # pixels in the image's lower-right corner (an overlap at its edge): y = x = 0.9
+    row = np.full(3, centre[0] + 0.9 * scale) + np.array([-1.0, 0.0, 1.0])
+    col = np.full(3, centre[1] + 0.9 * scale)
+    assert bias.mean(row, col) == pytest.approx((4.0 + 0.72 - 0.45, -7.0 + 0.27 + 1.08))
+    assert bias.mean(np.array([centre[0]]), np.array([centre[1]])) == pytest.approx((4.0, -7.0))
+    assert np.isnan(bias.mean(row[:0], col[:0])).all()

@@ -7,6 +7,7 @@ adjustment must be a fraction of a pixel."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -45,6 +46,7 @@ def test_match_then_adjust_leaves_sub_pixel_residuals(ventoux, tmp_path):
     assert result.exit_code == 0, result.output
     # the crops' pixel-unit geotransforms place them in their scenes: said, and applied
     assert "crop at row/col 5000, 5000" in result.stderr
+    match_stderr = result.stderr
     table = read_points(tp)
     n = np.unique(table["id"]).size
     assert n >= 300, result.stderr
@@ -92,3 +94,10 @@ correction = 0
     # the RPCs disagree by a few pixels: the shift RPCV-0 finds is what the matching saw
     a0, b0 = (p["value"] for p in report["parameters"]["right"])
     assert 1.0 < np.hypot(a0, b0) < 10.0
+    # and the offset geoblock match reports is that disagreement where the crops overlap
+    # (measured: -2.90, -4.17 against RPCV-0's -2.92, -4.17), not its bias polynomial
+    # extrapolated to the scene's centre 15000 px away (-2.74, -4.22)
+    said = re.search(r"kept .*models' offset ([-+][\d.]+), ([-+][\d.]+) px \(row, col\)",
+                     match_stderr)
+    assert said, match_stderr
+    assert abs(float(said[1]) - a0) < 0.1 and abs(float(said[2]) - b0) < 0.1, (said[0], a0, b0)

@@ -96,6 +96,18 @@ class Bias:
         value = self.terms(row, col) @ self.coefficients.T
         return value[:, 0], value[:, 1]
 
+    def mean(self, row: np.ndarray, col: np.ndarray) -> tuple[float, float]:
+        """The bias's mean over A's pixels ``(N,)``, ``(d_row, d_col)`` in B, pixels: the
+        models' disagreement where those pixels are (NaN for no pixel).
+
+        The constant term is the bias at ``centre`` (A's image or scene centre), an
+        extrapolation when the pixels lie far from it (an overlap at A's edge, a crop).
+        """
+        if not np.size(row):
+            return math.nan, math.nan
+        d_row, d_col = self(row, col)
+        return float(np.mean(d_row)), float(np.mean(d_col))
+
     @classmethod
     def zero(cls, centre: tuple[float, float], scale: float) -> Bias:
         """No bias."""

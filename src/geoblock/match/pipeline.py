@@ -334,11 +334,21 @@ class PairMatches:
         out.update({name: int((self.status == name).sum()) for name in REJECTIONS})
         return out
 
+    def offset_px(self) -> tuple[float, float]:
+        """The models' disagreement where the matches are: the bias's mean over the kept
+        matches (over every candidate when none is kept), ``(d_row, d_col)`` in B, pixels.
+
+        Not the bias's constant term: that is its value at A's (scene) centre, an
+        extrapolation for a pair that overlaps at A's edge or for a crop of a large scene.
+        """
+        at = self.kept if self.kept.any() else np.ones(self.status.size, bool)
+        return self.bias.mean(self.row_a[at], self.col_a[at])
+
     def summary(self) -> str:
         """One line: keypoints, candidates, kept, rejections, the bias and the scales."""
         c = self.counts()
         rejected = ", ".join(f"{name} {c[name]}" for name in REJECTIONS if c[name])
-        shift = self.bias.coefficients[:, 0]
+        shift = self.offset_px()
         return (f"{self.image_a} & {self.image_b}: {self.keypoints_a} + {self.keypoints_b} "
                 f"keypoints, {c['candidates']} candidates, {c['kept']} kept"
                 f" (rejected: {rejected or 'none'}); models' offset {shift[0]:+.2f}, "
@@ -657,8 +667,9 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
                        min_sigma_px=0.3, max_sigma_px=1.0, sigma_px=1.0,
                        sigma_h_m=options.dem_sigma_m, max_sigma_h_m=2 * options.dem_sigma_m,
                        centre=centre, scale=scale)
-    say(f"  {a.im.id} & {b.im.id}: models' offset {first.bias.coefficients[0, 0]:+.1f}, "
-        f"{first.bias.coefficients[1, 0]:+.1f} px from {int(first.inlier.sum())} of "
+    off = first.bias.mean(kp_a.row[sel][first.inlier], kp_a.col[sel][first.inlier])
+    say(f"  {a.im.id} & {b.im.id}: models' offset {off[0]:+.1f}, "
+        f"{off[1]:+.1f} px from {int(first.inlier.sum())} of "
         f"{sel.size} first-pass matches (window {search:.0f} px)")
 
     # --- second pass: every keypoint, narrow windows around the corrected prediction
