@@ -118,6 +118,13 @@ def test_fit_bias_lowers_its_order_with_few_points_and_refuses_none():
     bias = fit_bias(m["row"], m["col"], m["d_row"], m["d_col"], m["epi_row"], m["epi_col"],
                     order=2, sigma_px=0.1, sigma_h_m=6.0, centre=m["centre"], scale=m["scale"])
     assert bias.order == 0
+    # 10 matches per term: an affine bias from 30, a quadratic one from 60
+    m = synthetic(n=100)
+    for n, order, expected in ((29, 1, 0), (30, 1, 1), (59, 2, 1), (60, 2, 2)):
+        bias = fit_bias(m["row"][:n], m["col"][:n], m["d_row"][:n], m["d_col"][:n],
+                        m["epi_row"][:n], m["epi_col"][:n], order=order, sigma_px=0.1,
+                        sigma_h_m=6.0, centre=m["centre"], scale=m["scale"])
+        assert bias.order == expected, (n, order)
     with pytest.raises(MatchError, match="no match"):
         fit_bias(m["row"][:0], m["col"][:0], m["d_row"][:0], m["d_col"][:0], m["epi_row"][:0],
                  m["epi_col"][:0], order=1, sigma_px=1, sigma_h_m=1, centre=(0, 0), scale=1)
@@ -135,3 +142,28 @@ def test_the_bias_mean_is_its_value_where_the_pixels_are_not_at_the_centre():
     assert bias.mean(row, col) == pytest.approx((4.0 + 0.72 - 0.45, -7.0 + 0.27 + 1.08))
     assert bias.mean(np.array([centre[0]]), np.array([centre[1]])) == pytest.approx((4.0, -7.0))
     assert np.isnan(bias.mean(row[:0], col[:0])).all()
+
+
+def test_matches_rejected_earlier_never_enter_the_bias_fit():
+    """Candidates an earlier test rejected (ratio, correlation) may lie close to the bias by
+    chance; they get residuals but must neither move the bias nor widen the scales."""
+    m = synthetic(n=300, seed=3)
+    rng = np.random.default_rng(4)
+    extra = 300
+    stale = {key: np.concatenate([m[key], m[key][:extra]]) for key in
+             ("row", "col", "epi_row", "epi_col")}
+    # the same pixels, offsets 0.4 px off the bias across the board: within the tests' reach
+    stale["d_row"] = np.concatenate([m["d_row"], m["d_row"][:extra] + 0.4])
+    stale["d_col"] = np.concatenate([m["d_col"], m["d_col"][:extra] + rng.normal(0, 0.3, extra)])
+    eligible = np.r_[np.ones(300, bool), np.zeros(extra, bool)]
+    both = dict(m, **stale)
+    out = run(both, eligible=eligible)
+    alone = run(m)
+    assert not out.inlier[~eligible].any()
+    assert np.allclose(out.bias.coefficients, alone.bias.coefficients)
+    assert out.sigma_px == pytest.approx(alone.sigma_px)
+    assert out.perp.shape == (600,) and np.isfinite(out.perp).all()
+    # without the mask they would have been taken: the bias moves by about 0.2 px
+    mixed = run(both)
+    assert mixed.inlier[~eligible].mean() > 0.5
+    assert abs(mixed.bias.coefficients[0, 0] - alone.bias.coefficients[0, 0]) > 0.1

@@ -52,6 +52,8 @@ MAD_SCALE = 1.4826
 EPIPOLAR_EPS = 1e-9
 #: Terms of the bias polynomial per order (in A's normalised row, col).
 N_TERMS = {0: 1, 1: 3, 2: 6}
+#: Matches per term of the bias polynomial below which :func:`fit_bias` lowers its order.
+POINTS_PER_TERM = 10
 
 
 @dataclass(frozen=True)
@@ -173,7 +175,9 @@ def fit_bias(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: np.
     epi_row, epi_col : ndarray, (N,)
         Epipolar directions, pixels per metre.
     order : {0, 1, 2}
-        Polynomial order; lowered when there are too few points for it (3 points per term).
+        Polynomial order; lowered while there are fewer than :data:`POINTS_PER_TERM`
+        matches per term (an affine bias needs 30): with fewer, one wrong match at the edge
+        of a small set bends the slopes towards itself and then passes the tests.
     sigma_px, sigma_h_m : float
         Scales across the epipolar direction (pixels) and of the height parallax (metres).
     centre, scale : (float, float), float
@@ -193,7 +197,7 @@ def fit_bias(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: np.
     n = int(np.size(row_a))
     if n == 0:
         raise MatchError("fit_bias: no match to fit the bias to")
-    while order > 0 and n < 3 * N_TERMS[order]:
+    while order > 0 and n < POINTS_PER_TERM * N_TERMS[order]:
         order -= 1
     template = Bias.zero(centre, scale)
     phi = template.terms(row_a, col_a, order)  # (N, m)
@@ -260,7 +264,7 @@ def consistent(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: n
                min_sigma_h_m: float = 1.0, max_sigma_px: float = math.inf,
                max_sigma_h_m: float = math.inf, sigma_px: float = 1.0,
                sigma_h_m: float = 10.0, centre: tuple[float, float], scale: float,
-               max_iterations: int = 20) -> Consistency:
+               eligible: np.ndarray | None = None, max_iterations: int = 20) -> Consistency:
     """Fit the bias and reject the inconsistent matches, to a fixed point.
 
     Each iteration fits :func:`fit_bias` to the current inliers (with the current scales),
@@ -289,6 +293,10 @@ def consistent(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: n
         Starting scales.
     centre, scale : (float, float), float
         Normalisation of A's pixels.
+    eligible : ndarray of bool, (N,), optional
+        The matches that may be inliers (default: all). Matches rejected by earlier tests
+        (descriptor ratio, correlation) get residuals and test outcomes but never enter the
+        bias fit, however close to it they fall.
     max_iterations : int
         Iteration cap.
 
@@ -301,7 +309,9 @@ def consistent(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: n
     MatchError
         ``start`` selects no match.
     """
-    inlier = np.asarray(start, bool).copy()
+    eligible = (np.ones(np.size(row_a), bool) if eligible is None
+                else np.asarray(eligible, bool))
+    inlier = np.asarray(start, bool) & eligible
     if not inlier.any():
         raise MatchError("no match to start the consistency test from")
     s_p = min(max(float(sigma_px), min_sigma_px), max(max_sigma_px, min_sigma_px))
@@ -326,7 +336,7 @@ def consistent(row_a: np.ndarray, col_a: np.ndarray, d_row: np.ndarray, d_col: n
                   max(max_sigma_h_m, min_sigma_h_m))
         eps_fail = np.abs(perp) > k * s_p
         h_fail = ~eps_fail & (np.abs(par) > k * np.sqrt(s_p**2 + (s_h * norm) ** 2))
-        new = ~(eps_fail | h_fail)
+        new = ~(eps_fail | h_fail) & eligible
         if not new.any():
             raise MatchError("the consistency test rejected every match")
         if np.array_equal(new, inlier):

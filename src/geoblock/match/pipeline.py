@@ -735,7 +735,8 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
         final = consistent(ra, ca, d_row, d_col, pred.epi_row[idx], pred.epi_col[idx], start,
                            order=options.order, k=options.k, sigma_px=first.sigma_px,
                            sigma_h_m=first.sigma_h_m, max_sigma_px=min(first.sigma_px, 0.5),
-                           max_sigma_h_m=first.sigma_h_m, centre=centre, scale=scale)
+                           max_sigma_h_m=first.sigma_h_m, centre=centre, scale=scale,
+                           eligible=live)
         status[live & final.epipolar] = "epipolar"
         status[live & final.height] = "height"
         perp, height = final.perp, final.height_m
