@@ -151,8 +151,14 @@ def test_errors_name_the_files(triplet, tmp_path):
     rows, cols = far.shape
     elsewhere = MatchImage("far", ArrayImage(np.zeros((rows, cols), np.uint8), name="far.tif"),
                            far)
-    with pytest.raises(MatchError, match="no two of the images overlap.*far.tif"):
+    # ... on a DEM that covers a but not far: said, per image
+    with pytest.raises(MatchError, match="DEM cannot place.*far.tif: the DEM has no valid "
+                       "height over the scene") as err:
         match_images([a, elsewhere], dem)
+    assert "a.tif" not in str(err.value)
+    # ... on a DEM that covers both
+    with pytest.raises(MatchError, match="no two of the images overlap.*far.tif"):
+        match_images([a, elsewhere], geoblock.dem.ConstantDem(200.0))
     # an image without texture where it overlaps
     b_model = geoblock.open_model(images / "b_onboard.json")
     flat = MatchImage("flat", ArrayImage(np.full(b_model.shape, 100, np.uint8),

@@ -156,7 +156,8 @@ def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_give
     import numpy as np
 
     from geoblock import coords
-    from geoblock.ortho.grid import image_outline
+    from geoblock.dem import coverage_gap
+    from geoblock.models.base import image_outline
 
     try:
         lo, hi = model.height_range
@@ -165,7 +166,6 @@ def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_give
         lon, lat = np.asarray(fp.lon), np.asarray(fp.lat)
         ok = np.isfinite(lon) & np.isfinite(lat)
         lon, lat = lon[ok], lat[ok]
-        box = (float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max()))
         x, y = coords.transformer("EPSG:4326", grid.crs).transform(lon, lat)
         xmin, ymin, xmax, ymax = grid.bounds
         if x.max() < xmin or x.min() > xmax or y.max() < ymin or y.min() > ymax:
@@ -173,11 +173,9 @@ def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_give
             return (f"{what} ({xmin:.10g}, {ymin:.10g}, {xmax:.10g}, {ymax:.10g}) do not "
                     f"overlap the image footprint ({x.min():.10g}, {y.min():.10g}, "
                     f"{x.max():.10g}, {y.max():.10g}) in {grid.crs.name}")
-        dlo, dhi = (float(v) for v in dem.height_range(box))
-        if not (math.isfinite(dlo) and math.isfinite(dhi)):
-            return (f"the DEM has no valid height over the scene (lon {box[0]:.6f} to "
-                    f"{box[2]:.6f}, lat {box[1]:.6f} to {box[3]:.6f}): it does not cover it "
-                    "or is all nodata there")
+        gap = coverage_gap(dem, model)
+        if gap is not None:
+            return gap
     except Exception:  # the diagnosis must not hide the error itself
         pass
     return ("check that the DEM covers the scene, that --bounds overlap the footprint and "

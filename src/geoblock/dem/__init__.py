@@ -5,7 +5,7 @@ from geoblock.dem.constant import ConstantDem
 from geoblock.dem.filled import FilledDem
 from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.grid import GridDem
-from geoblock.dem.intersect import as_dem_source, localize
+from geoblock.dem.intersect import as_dem_source, coverage_gap, localize
 from geoblock.dem.protocol import DemSource
 from geoblock.dem.raster import BLOCK_CACHE, ArrayDem, MosaicDem, RasterDem
 from geoblock.dem.sampling import INTERPOLATIONS
@@ -24,6 +24,7 @@ __all__ = [
     "MosaicDem",
     "RasterDem",
     "as_dem_source",
+    "coverage_gap",
     "find_geoid",
     "localize",
 ]

@@ -54,7 +54,7 @@ if TYPE_CHECKING:
     from geoblock.io.dem import EngineDem
     from geoblock.models.protocol import SensorModel
 
-__all__ = ["METHODS", "as_dem_source", "localize"]
+__all__ = ["METHODS", "as_dem_source", "coverage_gap", "localize"]
 
 METHODS = ("robust", "ray-tracing")
 
@@ -222,6 +222,41 @@ def as_dem_source(dem: EngineDem) -> DemSource:
     from geoblock.io.dem import as_dem
 
     return as_dem(dem)
+
+
+def coverage_gap(dem: DemSource, model: SensorModel) -> str | None:
+    """Why ``dem`` cannot localise any of ``model``'s image, or None when it can.
+
+    The model's footprint at the middle of its height range gives a ``(west, south, east,
+    north)`` box; a DEM without a finite height over that box (outside it, or all nodata
+    there) cannot place a ray of this image. For error messages: an empty ortho, images
+    that seem not to overlap.
+
+    Parameters
+    ----------
+    dem : DemSource
+    model : SensorModel
+
+    Returns
+    -------
+    str or None
+        ``"the DEM has no valid height over the scene (lon ... to ..., lat ... to ...): it
+        does not cover it or is all nodata there"``, ``"the model's footprint cannot be
+        computed"``, or None.
+    """
+    from geoblock.models.base import image_outline
+
+    lo, hi = (float(v) for v in model.height_range)
+    mid = 0.5 * (lo + hi) if math.isfinite(lo) and math.isfinite(hi) else 0.0
+    fp = image_outline(model, mid)
+    box = _bbox([(np.asarray(fp.lon), np.asarray(fp.lat))], 0.0)
+    if box is None:
+        return "the model's footprint cannot be computed"
+    dlo, dhi = (float(v) for v in dem.height_range(box))
+    if math.isfinite(dlo) and math.isfinite(dhi):
+        return None
+    return (f"the DEM has no valid height over the scene (lon {box[0]:.6f} to {box[2]:.6f}, "
+            f"lat {box[1]:.6f} to {box[3]:.6f}): it does not cover it or is all nodata there")
 
 
 class _Evaluator:

@@ -912,6 +912,12 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     say(f"overlaps of {len(images)} images on the DEM")
     pairs = _pairs(images, dem, say)
     if not pairs:
+        from geoblock.dem import coverage_gap
+
+        gaps = [f"{im.name}: {gap}" for im in images
+                if (gap := coverage_gap(dem, im.model)) is not None]
+        if gaps:
+            raise MatchError("the DEM cannot place the images' rays: " + "; ".join(gaps))
         names = ", ".join(im.name for im in images)
         raise MatchError(f"no two of the images overlap on the DEM ({names}): check the "
                          "models, the DEM and that the images show the same area")

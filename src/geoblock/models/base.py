@@ -17,7 +17,7 @@ import abc
 import json
 import warnings
 from collections.abc import Callable, Collection, Mapping
-from typing import Any, ClassVar, Self, TypeAlias
+from typing import TYPE_CHECKING, Any, ClassVar, Self, TypeAlias
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,7 +37,10 @@ from geoblock.typing import (
     Status,
 )
 
-__all__ = ["SensorModelBase", "canonical_json", "image_shape"]
+if TYPE_CHECKING:
+    from geoblock.models.protocol import SensorModel
+
+__all__ = ["SensorModelBase", "canonical_json", "image_outline", "image_shape"]
 
 _CONVERGED = np.uint8(Status.CONVERGED)
 
@@ -52,6 +55,31 @@ Kernel = Callable[[Float64Array, Float64Array, Float64Array], KernelResult]
 def canonical_json(data: Mapping[str, Any]) -> str:
     """The canonical JSON text of a model dictionary (sorted keys, no spaces)."""
     return json.dumps(data, sort_keys=True, separators=(",", ":"))
+
+
+def image_outline(model: SensorModel, h: float, n: int = 32) -> GroundCoords:
+    """The image outline of any model of the protocol backprojected at height ``h``.
+
+    Parameters
+    ----------
+    model : SensorModel
+    h : float
+        Metres above the ellipsoid.
+    n : int
+        Points per side.
+
+    Returns
+    -------
+    GroundCoords
+        ``(4 n,)`` points along the pixel *edges* (:func:`geoblock.pixels.image_domain`: row
+        and col from -0.5 to size - 0.5), clockwise in image space from the top-left corner,
+        not closed; NaN where the model does not backproject.
+    """
+    r0, c0, r1, c1 = image_domain(model.shape)
+    t = np.linspace(0.0, 1.0, n, endpoint=False)
+    row = np.concatenate([np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t])
+    col = np.concatenate([c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t, np.full(n, c0)])
+    return model.backproject(row, col, np.full(row.shape, float(h)))
 
 
 def image_shape(value: Any, where: str, *, maximum: int = 10**7) -> tuple[int, int]:
@@ -531,18 +559,9 @@ class SensorModelBase(abc.ABC):
             (4 n,) points along the pixel *edges* (row and col from -0.5 to size - 0.5),
             clockwise in image space from the top-left corner, not closed.
         """
-        rows, cols = self.shape
         if h is None:
             h = 0.5 * (self.height_range[0] + self.height_range[1])
-        t = np.linspace(0.0, 1.0, n, endpoint=False)
-        r0, c0, r1, c1 = image_domain((rows, cols))
-        row = np.concatenate(
-            [np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t]
-        )
-        col = np.concatenate(
-            [c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t, np.full(n, c0)]
-        )
-        return self.backproject(row, col, np.full(row.shape, float(h)))
+        return image_outline(self, h, n)
 
     # ---------------------------------------------------------------- value semantics
     def __eq__(self, other: object) -> bool:

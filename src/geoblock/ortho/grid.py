@@ -51,16 +51,17 @@ from affine import Affine
 
 from geoblock import coords
 from geoblock.errors import GridError
+from geoblock.models.base import image_outline
 from geoblock.ortho.limits import MAX_DEGREES, MAX_PIXELS, MAX_SIDE, MIN_SIDE
-from geoblock.pixels import corner_to_centre, image_domain, pixel_to_map
-from geoblock.typing import ArrayLike, GroundCoords
+from geoblock.pixels import corner_to_centre, pixel_to_map
+from geoblock.typing import ArrayLike
 
 if TYPE_CHECKING:
     from geoblock.dem.protocol import DemSource
     from geoblock.io.dem import EngineDem
     from geoblock.models.protocol import SensorModel
 
-__all__ = ["MAX_PIXELS", "OutputGrid", "image_outline", "nice_resolution"]
+__all__ = ["MAX_PIXELS", "OutputGrid", "nice_resolution"]
 
 _TAP_EPS = 1e-8  # gdalwarp's tolerance when snapping -tap bounds
 
@@ -559,18 +560,6 @@ def _scene_outline(
         lo, hi = new_lo, new_hi
         lon, lat = _outline_at(model, lo, hi)
     return lon, lat
-
-
-def image_outline(model: SensorModel, h: float, n: int = 32) -> GroundCoords:
-    """The image outline backprojected at height ``h``: ``4 n`` points along the pixel
-    *edges* (:func:`geoblock.pixels.image_domain`), clockwise in image space from the top-left
-    corner, not closed (what :meth:`SensorModelBase.footprint
-    <geoblock.models.SensorModelBase.footprint>` gives, for any model of the protocol)."""
-    r0, c0, r1, c1 = image_domain(model.shape)
-    t = np.linspace(0.0, 1.0, n, endpoint=False)
-    row = np.concatenate([np.full(n, r0), r0 + (r1 - r0) * t, np.full(n, r1), r1 - (r1 - r0) * t])
-    col = np.concatenate([c0 + (c1 - c0) * t, np.full(n, c1), c1 - (c1 - c0) * t, np.full(n, c0)])
-    return model.backproject(row, col, np.full(row.shape, float(h)))
 
 
 def _outline_at(model: SensorModel, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
