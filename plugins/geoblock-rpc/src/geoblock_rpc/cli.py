@@ -123,12 +123,14 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
     refine' or 'geoblock adjust'). An RPC is written exactly; an RPC with an image correction
     (RPCV-0, RPCV-1) is folded into the coefficients, exactly when the algebra allows; any
     other model (physical, adjusted, corrected physical) is fitted over the image and the
-    model's height range. One line says which happened:
+    model's height range. One line says which happened, one of:
 
     \b
-      written exactly (RpcModel)
+      written exactly (RpcModel, or RFM-N in lon/lat is an RPC00B)
       folded exactly (offset): max error ... px over N check points
+      refitted (refit: the correction does not fold exactly): check-grid RMS x px, ...
       fitted: check-grid RMS x px, max y px over N points (regularization L)
+      written by another plugin's writer (FORMAT: no RPC export report)
 
     An approximate RPC worse than --max-error-px is refused and nothing is written.
     OUT is replaced only when complete; with --format tif and --image it is a copy of that
@@ -143,7 +145,7 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
     """
     from geoblock.errors import GeoblockError
     from geoblock.io import files, write_model
-    from geoblock_rpc.export import RpcExportWarning
+    from geoblock_rpc.export import ExportOutcome, RpcExportWarning
     from geoblock_rpc.model import RpcModel
 
     final = Path(out_path)
@@ -186,9 +188,9 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
     if report is not None:
         what = report.summary()
     elif isinstance(model, RpcModel):
-        what = "written exactly (RpcModel)"
+        what = f"{ExportOutcome.WRITTEN.value} (RpcModel)"
     else:  # another plugin's writer answered first
-        what = f"written by a plugin's {FORMATS[fmt]} writer (no RPC export report)"
+        what = f"{ExportOutcome.OTHER_WRITER.value} ({FORMATS[fmt]}: no RPC export report)"
     click.echo(f"{final} ({FORMATS[fmt]}): {what}")
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any
 
 from geoblock.errors import AdjustmentError, GeoblockWarning, ModelFormatError
@@ -19,8 +20,8 @@ from geoblock.models.corrections import ImageCorrection
 from geoblock.models.protocol import SensorModel
 from geoblock_rpc.model import RpcModel
 
-__all__ = ["EXPORT_OPTIONS", "MAX_FIT_ERROR_PX", "MAX_REFIT_ERROR_PX", "ExportReport",
-           "RpcExportWarning", "export_rpc"]
+__all__ = ["EXPORT_OPTIONS", "MAX_FIT_ERROR_PX", "MAX_REFIT_ERROR_PX", "ExportOutcome",
+           "ExportReport", "RpcExportWarning", "export_rpc"]
 
 
 #: a corrected RPC whose correction does not fold exactly is refitted, and written only when
@@ -36,6 +37,23 @@ MAX_FIT_ERROR_PX = 0.5
 
 #: the options :func:`export_rpc` takes out of the writer options
 EXPORT_OPTIONS = ("grid", "regularization", "max_error_px", "max_refit_error_px")
+
+
+class ExportOutcome(str, Enum):
+    """What ``geoblock export-rpc`` says happened: the words its line starts with, after
+    ``OUT (FORMAT):``. The one list of them: :meth:`ExportReport.summary` and the command
+    print these, and the command's ``--help`` lists each (a test checks it)."""
+
+    #: an RpcModel, or an RFM fitted in lon/lat (its RPC00B): the coefficients as they are
+    WRITTEN = "written exactly"
+    #: an image correction of an RPC folded into its coefficients, algebraically equal
+    FOLDED = "folded exactly"
+    #: an image correction of an RPC that does not fold exactly: an RPC refitted to it
+    REFITTED = "refitted"
+    #: any other model: a sensor-oriented RPC fitted to it
+    FITTED = "fitted"
+    #: the command only: another plugin's writer answered the write hook first (no report)
+    OTHER_WRITER = "written by another plugin's writer"
 
 
 @dataclass(frozen=True)
@@ -79,22 +97,33 @@ class ExportReport:
     message: str = ""
 
     def summary(self) -> str:
-        """One line saying which happened, as ``geoblock export-rpc`` prints it.
+        """One line saying which happened, as ``geoblock export-rpc`` prints it; it starts
+        with :attr:`outcome`.
 
         ``"written exactly (RpcModel)"``, ``"folded exactly (offset): max error 2e-09 px over
-        25600 check points"``, or ``"fitted: check-grid RMS 0.116 px, max 0.28 px over 25600
-        points (regularization 1e-09)"`` (``"refitted (...)"`` for a correction that does not
-        fold exactly).
+        25600 check points"``, ``"refitted (refit: the correction does not fold exactly):
+        check-grid RMS ..."`` or ``"fitted: check-grid RMS 0.116 px, max 0.28 px over 25600
+        points (regularization 1e-09)"``.
         """
-        if self.method in ("identity", "as-rpc"):
-            return f"written exactly ({self.detail})"
-        if self.exact:
-            return (f"folded exactly ({self.detail}): max error {self.max_px:.3g} px over "
+        outcome = self.outcome.value
+        if self.outcome is ExportOutcome.WRITTEN:
+            return f"{outcome} ({self.detail})"
+        if self.outcome is ExportOutcome.FOLDED:
+            return (f"{outcome} ({self.detail}): max error {self.max_px:.3g} px over "
                     f"{self.n_check} check points")
-        what = ("fitted" if self.method == "fit"
-                else f"refitted ({self.detail}: the correction does not fold exactly)")
-        return (f"{what}: check-grid RMS {self.rms_px:.3g} px, max {self.max_px:.3g} px over "
-                f"{self.n_check} points (regularization {_number(self.regularization)})")
+        if self.outcome is ExportOutcome.REFITTED:
+            outcome = f"{outcome} ({self.detail}: the correction does not fold exactly)"
+        return (f"{outcome}: check-grid RMS {self.rms_px:.3g} px, max {self.max_px:.3g} px "
+                f"over {self.n_check} points (regularization {_number(self.regularization)})")
+
+    @property
+    def outcome(self) -> ExportOutcome:
+        """Which happened (:class:`ExportOutcome`; never ``OTHER_WRITER``)."""
+        if self.method in ("identity", "as-rpc"):
+            return ExportOutcome.WRITTEN
+        if self.exact:
+            return ExportOutcome.FOLDED
+        return ExportOutcome.FITTED if self.method == "fit" else ExportOutcome.REFITTED
 
 
 class RpcExportWarning(GeoblockWarning):
