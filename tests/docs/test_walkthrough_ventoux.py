@@ -143,23 +143,30 @@ def test_tie_points_and_their_residuals_are_what_the_page_says(walkthrough):
     assert (a0, b0) == pytest.approx((_quoted(r"a0, b0 = \((-?\d+\.\d+),"),
                                       _quoted(r"a0, b0 = \(-?\d+\.\d+, (-?\d+\.\d+)\)")),
                                      abs=0.1)
-    # the correction where the crops overlap: the adjusted model against the vendor RPC at
-    # the right image's tie points, which is also the offset geoblock match reported
+    # not quoted by the page (no command prints it), checked for the run's consistency: the
+    # correction where the crops overlap, the adjusted model against the vendor RPC at the
+    # right image's tie points, is about the offset geoblock match reported (the page quotes)
     adjusted = geoblock.open_model(workdir / "adjusted" / "models" / "right.json")
     right = tp["image"] == "right"
     ground = adjusted.model.backproject(tp["row"][right], tp["col"][right], 500.0)
     r0, c0 = adjusted.model.project(ground.lon, ground.lat, ground.h)
     r1, c1 = adjusted.project(ground.lon, ground.lat, ground.h)
     shift = float(np.mean(r1 - r0)), float(np.mean(c1 - c0))
-    assert shift == pytest.approx((_quoted(r"shift of \((-?\d+\.\d+),"),
-                                   _quoted(r"shift of \(-?\d+\.\d+, (-?\d+\.\d+)\)")),
-                                  abs=0.02)
     match_output = next(v for k, v in outputs.items() if k.startswith("match:"))
     said = re.search(r"kept .*?models' offset ([-+]?[\d.]+), ([-+]?[\d.]+) px", match_output)
     assert said, match_output
+    assert (float(said[1]), float(said[2])) == pytest.approx(
+        (_quoted(r"`geoblock match` printed \((-?\d+\.\d+),"),
+         _quoted(r"`geoblock match` printed \(-?\d+\.\d+, (-?\d+\.\d+) px\)")), abs=0.02)
     # within 0.15 px (measured 0.13 along rows): RPCV-1 trades part of a shift along the
     # epipolar direction for the tie points' heights, which the SRTM holds only within 10 m
     assert (float(said[1]), float(said[2])) == pytest.approx(shift, abs=0.2)
+    rms = residuals["right"]["tp"]
+    assert (rms["rmse_row"], rms["rmse_col"]) == pytest.approx(
+        (_quoted(r"RMS\nrow (\d\.\d+) px"), _quoted(r"RMS\nrow \d\.\d+ px, col (\d\.\d+) px")),
+        abs=0.003)
+    overlap = re.search(r"(\d+) % of left overlaps right", match_output)
+    assert overlap and int(overlap[1]) == _quoted(r"\((\d+) % of the left\ncrop")
     assert report["parameters"]["left"] == []  # the reference image is held
 
 
@@ -178,3 +185,29 @@ def test_the_ictps_agree_after_the_adjustment_as_the_page_says(walkthrough):
     assert stats["after"]["rmse_2d"] == pytest.approx(
         _quoted(r"\| after the block adjustment \| [-\d.]+ \| [-\d.]+ \| (\d+\.\d+) \|"),
         rel=0.1)
+
+
+def test_the_orthos_misregistration_is_what_the_page_says(walkthrough):
+    """Section 4 quotes the ICTP discrepancies as the two orthos' misregistration."""
+    workdir, _ = walkthrough
+    stats = {name: json.loads((workdir / folder / "report.json").read_text())["statistics"]
+             ["ictp"]["left & right"] for name, folder in (("vendor", "vendor"),
+                                                          ("after", "adjusted"))}
+    vendor, after = stats["vendor"], stats["after"]
+    assert vendor["rmse_2d"] == pytest.approx(_quoted(r"feature (\d+\.\d+) m apart"), abs=0.05)
+    assert np.hypot(vendor["mean_e"], vendor["mean_n"]) == pytest.approx(
+        _quoted(r"RMS\), (\d+\.\d+) m of it a shift"), abs=0.05)
+    for name, s in stats.items():
+        for axis in ("e", "n"):
+            # the table's mean columns, also quoted in section 4
+            row = "vendor RPCs" if name == "vendor" else "after the block adjustment"
+            skip = "" if axis == "e" else r" -?\d+\.\d+ \|"
+            quoted = _quoted(rf"\| {row} \|{skip}" + r" (-?\d+\.\d+) \|")
+            assert s[f"mean_{axis}"] == pytest.approx(quoted, abs=0.01)
+    page = PAGE.read_text(encoding="utf-8")
+    for name, s in stats.items():
+        prose = f"mean {s['mean_e']:.2f} m E, {s['mean_n']:.2f} m N"
+        assert prose in page, prose
+    assert after["rmse_2d"] == pytest.approx(
+        _quoted(r"still differ by (\d+\.\d+) m RMS"), abs=0.05)
+    assert after["max_2d"] == pytest.approx(_quoted(r"RMS, up to (\d+\.\d+) m"), abs=0.05)
