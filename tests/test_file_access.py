@@ -56,7 +56,7 @@ FILE_METHODS = frozenset({
 PATH_METHODS = frozenset({"rename", "replace", "chmod", "open"})
 
 #: low-level io modules (imported by dem/, ortho/, models/) and what they must not import
-LOW_LEVEL_IO = ("io/_atomic.py", "io/_progress.py", "io/files.py", "io/metadata.py",
+LOW_LEVEL_IO = ("io/_atomic.py", "io/_progress.py", "io/files.py", "io/metadata.py", "io/vsi.py",
                 "io/rasters.py")
 UPPER_PACKAGES = ("geoblock.dem", "geoblock.ortho", "geoblock.models", "geoblock.adjust",
                   "geoblock.simulate", "geoblock.workflows", "geoblock.report")

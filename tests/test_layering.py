@@ -48,6 +48,7 @@ LAYERS: dict[str, int] = {
     "geoblock.io._atomic": 1,
     "geoblock.io._progress": 1,
     "geoblock.io.rasters": 1,  # the raster handle cache
+    "geoblock.io.vsi": 1,  # GDAL virtual paths (/vsizip/, /vsicurl/...) for metadata files
     "geoblock.io.geotiff": 1,  # the GeoTIFF write options (no imports: shown by --help)
     # 2 values and registry: sensor models, DEM sources, observations, the plugin machinery
     "geoblock.hookspecs": 2,

@@ -19,6 +19,7 @@ __all__ = [
     "ConvergenceWarning",
     "CoordinateError",
     "CropError",
+    "ModelImageMismatchError",
     "DemCoverageError",
     "DemError",
     "DemoOutdirError",
@@ -89,6 +90,12 @@ class CoordinateError(GeoblockError, ValueError):
 class CropError(GeoblockError, ValueError):
     """An image and a model do not fit: shapes differ with no crop offset, or the crop does not
     lie inside the model's scene (the message gives both shapes and what to pass)."""
+
+
+class ModelImageMismatchError(GeoblockError, ValueError):
+    """The model describes another image than the raster it is used with: both carry an id of
+    the same kind and the ids differ (the message names both ids, both files and how to
+    override)."""
 
 
 class UnknownModelError(GeoblockError, KeyError):

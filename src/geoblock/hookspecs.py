@@ -73,9 +73,15 @@ def geoblock_read_sensor_model(
 
     Parameters
     ----------
-    path : pathlib.Path
+    path : pathlib.Path or geoblock.io.vsi.VsiPath
         The file the user gave (it exists), or a product directory (a reader that reads only
-        files returns ``None`` for directories).
+        files returns ``None`` for directories). A GDAL virtual path (``/vsizip/...``,
+        ``/vsicurl/...``) comes as a :class:`~geoblock.io.vsi.VsiPath`, which has the
+        read-only part of ``Path``'s interface (``name``, ``suffix``, ``parent``, ``/``,
+        ``is_file``, ``iterdir``...): readers take paths with
+        :func:`geoblock.io.vsi.as_path` (never ``Path(path)``, which collapses the ``//`` of
+        ``/vsicurl/https://``), read bytes with :func:`geoblock.io.metadata.read_bytes` and
+        open rasters with :func:`geoblock.io.open_quietly`, all of which read through GDAL.
     model_name : str or None
         The model the user asked for, or ``None`` for "whatever fits".
     options : mapping

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import warnings
 from collections import deque
@@ -52,8 +53,8 @@ if TYPE_CHECKING:
     import xarray as xr
     from rasterio.io import DatasetReader
 
-__all__ = ["ArrayImage", "ImageLike", "ImageSource", "OpenedImage", "open_image", "read_band",
-           "write_image", "write_ortho"]
+__all__ = ["ArrayImage", "ImageLike", "ImageSource", "OpenedImage", "open_image",
+           "raster_source_ids", "read_band", "write_image", "write_ortho"]
 
 PathLike = str | os.PathLike[str]
 
@@ -84,6 +85,10 @@ class ImageSource:
         The file's CRS, if any.
     transform : affine.Affine or None
         The file's geotransform (rasterio order; the identity when the file has none).
+    source_ids : tuple of (str, str)
+        ``(kind, id)`` pairs of the ids the raster carries (:func:`raster_source_ids`), which
+        :func:`geoblock.models.crop.model_for_image` compares with the model's
+        ``source_ids``; empty when it carries none.
     """
 
     path: str
@@ -94,6 +99,7 @@ class ImageSource:
     crop_offset: tuple[float, float] | None = None
     crs: Any = None
     transform: Any = None
+    source_ids: tuple[tuple[str, str], ...] = ()
 
     @property
     def name(self) -> str:
@@ -343,7 +349,54 @@ def _image_source(name: str, ds: Any) -> ImageSource:
         crop_offset=pixel_crop_offset(ds.transform, ds.crs),
         crs=ds.crs,
         transform=ds.transform,
+        source_ids=raster_source_ids(ds),
     )
+
+
+_GML_NAME = re.compile(r"<gml:name>\s*([^<\s]+)\s*</gml:name>")
+
+
+def raster_source_ids(ds: Any) -> tuple[tuple[str, str], ...]:
+    """The ids an open rasterio dataset carries, as ``(kind, id)`` pairs.
+
+    Only real ids are read, never file names:
+
+    * ``catalog_id``: the DigitalGlobe/Maxar catalog id (``IMAGE.CATID`` or
+      ``IMAGE_1.CATID`` of GDAL's ``IMD`` metadata domain, which GDAL fills from the
+      product's ``.IMD`` or ISD ``.XML`` beside the image);
+    * ``dataset_name``: DIMAP ``DATASET_NAME`` in the ``IMD`` domain (a DIMAP document
+      beside the image);
+    * ``datastrip_id``: the Pleiades / SPOT 6-7 datastrip (``DS_...``) named by the GML
+      coverage embedded in the image (``gml.root-instance``), as the Ventoux crops carry;
+    * ``nitf_iid2``: a NITF image's ``IID2`` (when not empty).
+
+    Parameters
+    ----------
+    ds : rasterio dataset
+
+    Returns
+    -------
+    tuple of (str, str)
+        Sorted by kind; one id per kind.
+    """
+    ids: dict[str, str] = {}
+    imd = {k.upper(): str(v).strip().strip('"') for k, v in (ds.tags(ns="IMD") or {}).items()}
+    for key in ("IMAGE.CATID", "IMAGE_1.CATID"):
+        if imd.get(key):
+            ids["catalog_id"] = imd[key]
+            break
+    for key, value in imd.items():
+        if key.endswith("DATASET_NAME") and value:
+            ids["dataset_name"] = value
+            break
+    tags = ds.tags() or {}
+    gml = _GML_NAME.search(str(tags.get("gml.root-instance", "")))
+    if gml and gml.group(1).startswith("DS_"):
+        ids["datastrip_id"] = gml.group(1)
+    iid2 = str(tags.get("NITF_IID2", "")).strip()
+    if iid2:
+        ids["nitf_iid2"] = iid2
+    return tuple(sorted(ids.items()))
 
 
 def _from_dataset(ds: Any) -> ImageSource | ArrayImage:

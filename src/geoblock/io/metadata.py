@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 
 from geoblock.errors import GeoblockError, GeoblockIOError, MetadataFieldError
+from geoblock.io.vsi import as_path, is_vsi
+from geoblock.io.vsi import read_bytes as read_vsi_bytes
 from geoblock.typing import ArrayLike
 
 __all__ = [
@@ -70,7 +72,8 @@ def read_bytes(
     Parameters
     ----------
     path : str or path-like
-        The file.
+        The file: a local path or a GDAL virtual path (``/vsizip/...``, ``/vsicurl/...``,
+        :class:`geoblock.io.vsi.VsiPath`), read through GDAL.
     size : int, optional
         Most bytes to read (fewer at the end of the file); default all from ``offset``.
     offset : int
@@ -81,6 +84,8 @@ def read_bytes(
     GeoblockIOError
         The file cannot be read (missing, a directory, no permission); names the file.
     """
+    if is_vsi(path):
+        return read_vsi_bytes(path, size, offset)
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -130,7 +135,7 @@ def read_xml(
         From ``error(path, "XML", ...)`` when the file is not well-formed XML (truncated?) or
         declares an unknown encoding.
     """
-    path = Path(path)
+    path = as_path(path)
     data = read_bytes(path)
     try:
         root = ET.fromstring(data)

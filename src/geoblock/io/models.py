@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 from geoblock.errors import GeoblockIOError, ModelFormatError, UnsupportedFormatError
 from geoblock.io.files import write_text
+from geoblock.io.metadata import read_bytes
+from geoblock.io.vsi import VsiPath, as_path
 from geoblock.models.protocol import SensorModel
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -38,7 +40,11 @@ def open_model(
     path : str or path-like
         Vendor metadata (DIMAP, RPB, _RPC.TXT, GeoTIFF with RPC tags, ...), a product
         directory a plugin recognises (e.g. a SPOT scene holding ``METADATA.DIM``) or model
-        JSON.
+        JSON. A GDAL virtual path (``/vsizip/scene.zip/IMAGE.TIF``,
+        ``/vsicurl/https://host/IMAGE.TIF``, ``/vsis3/bucket/IMAGE.RPB``, ``/vsimem/...``)
+        opens as well: it is kept as given and handed to the readers as a
+        :class:`geoblock.io.vsi.VsiPath`, which they read (and look for sidecars beside)
+        through GDAL.
     model : str, optional
         The registered model to build (``geoblock plugins`` lists them); by default the
         first reader that recognises the file decides.
@@ -52,7 +58,8 @@ def open_model(
     Raises
     ------
     GeoblockIOError
-        ``path`` does not exist.
+        ``path`` does not exist (for a virtual path: GDAL finds nothing there); the message
+        names the path as given.
     UnknownModelError
         ``model`` is not a registered model name.
     UnsupportedFormatError
@@ -63,9 +70,10 @@ def open_model(
     """
     from geoblock.plugins import call_firstresult, get_plugin_manager, get_registry
 
-    path = Path(path)
+    path = as_path(path)  # a Path, or a VsiPath keeping a virtual path's "//"
     if not (path.is_file() or path.is_dir()):  # a directory: a product (e.g. SPOT DIMAP)
-        raise GeoblockIOError(f"cannot open sensor model: {str(path)!r} does not exist")
+        where = " (GDAL finds nothing there)" if isinstance(path, VsiPath) else ""
+        raise GeoblockIOError(f"cannot open sensor model: {str(path)!r} does not exist{where}")
     registry = get_registry()
     if model is not None:
         registry.get(model)  # UnknownModelError listing the registered names
@@ -158,14 +166,13 @@ def read_model_json(path: str | os.PathLike[str]) -> dict[str, Any] | None:
     GeoblockIOError
         A ``.json`` file that exists but cannot be read (names the file).
     """
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() != ".json" or path.is_dir():
         return None
     try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise GeoblockIOError(f"cannot read model JSON {str(path)!r}: "
-                              f"{exc.strerror or exc}") from exc
+        raw = read_bytes(path)
+    except GeoblockIOError as exc:
+        raise GeoblockIOError(f"cannot read model JSON {exc}") from exc
     try:
         data = json.loads(raw.decode("utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError):

@@ -233,6 +233,22 @@ class SensorModelBase(abc.ABC):
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
         """Rebuild a model from :meth:`to_dict` output."""
 
+    # ---------------------------------------------------------------- image ids
+    @property
+    def source_ids(self) -> Mapping[str, str]:
+        """Ids of the image this model describes, by kind (optional; empty by default).
+
+        Not part of the :class:`~geoblock.models.protocol.SensorModel` protocol: a model
+        without this attribute, or with no ids, is never refused.
+        :func:`geoblock.models.crop.model_for_image` compares them with the raster's ids
+        (:attr:`ImageSource.source_ids <geoblock.io.images.ImageSource.source_ids>`) and
+        refuses a mismatch of the same kind. Kinds: ``catalog_id`` (DigitalGlobe/Maxar
+        ``CATID``), ``datastrip_id`` (Pleiades/SPOT 6-7 ``DS_...``), ``dataset_name`` (DIMAP
+        ``DATASET_NAME``), ``nitf_iid2`` (NITF ``IID2``), ``ossim_image_id`` (OSSIM ``.geom``
+        ``image_id``); a plugin may add its own kind (compared only with the same kind).
+        """
+        return {}
+
     # ---------------------------------------------------------------- parameter sets
     #: Names of the parameter presets :meth:`with_parameter_set` accepts; ``"default"`` (the
     #: parameters as the model has them) always among them. Subclasses with presets override

@@ -184,6 +184,11 @@ class ImageCorrection(ImageSpaceCorrection):
 
     # ------------------------------------------------------------------ state
     @property
+    def source_ids(self) -> Mapping[str, str]:
+        """The wrapped model's image ids (a correction describes the same image)."""
+        return dict(getattr(self._model, "source_ids", None) or {})
+
+    @property
     def order(self) -> int:
         """Polynomial order (0, 1 or 2)."""
         return self._order

@@ -23,7 +23,7 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar, Self
 
-from geoblock.errors import CropError, ModelFormatError
+from geoblock.errors import CropError, ModelFormatError, ModelImageMismatchError
 from geoblock.models.base import KernelResult, SensorModelBase, image_shape
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
@@ -138,6 +138,11 @@ class CroppedModel(SensorModelBase):
         return self._shape
 
     @property
+    def source_ids(self) -> Mapping[str, str]:
+        """The wrapped model's image ids (a crop keeps its scene's ids)."""
+        return dict(getattr(self._model, "source_ids", None) or {})
+
+    @property
     def height_range(self) -> tuple[float, float]:
         return self._model.height_range
 
@@ -209,8 +214,24 @@ class CroppedModel(SensorModelBase):
 
 # ------------------------------------------------------------------------- reconciling
 #: How a refusal names the ways out (the CLI passes its option names).
-PYTHON_NAMES = {"crop_offset": "crop_offset=(ROW0, COL0)", "no_crop": "crop=False"}
-CLI_NAMES = {"crop_offset": "--crop-offset ROW COL", "no_crop": "--no-crop"}
+PYTHON_NAMES = {"crop_offset": "crop_offset=(ROW0, COL0)", "no_crop": "crop=False",
+                "force": "force=True"}
+CLI_NAMES = {"crop_offset": "--crop-offset ROW COL", "no_crop": "--no-crop", "force": "--force"}
+
+
+def _check_ids(model: SensorModel, source: Any, force_name: str) -> None:
+    """Refuse a model whose image ids differ from the raster's in a kind both carry."""
+    model_ids = dict(getattr(model, "source_ids", None) or {})
+    image_ids = dict(getattr(source, "source_ids", None) or ())
+    for kind in sorted(set(model_ids) & set(image_ids)):
+        if str(model_ids[kind]).strip() != str(image_ids[kind]).strip():
+            origin = getattr(getattr(model, "rpc", None), "source", None) or repr(model)
+            raise ModelImageMismatchError(
+                f"the model describes another image than {source.path}: its {kind} is "
+                f"{model_ids[kind]!r} (model {origin}) but the image's is "
+                f"{image_ids[kind]!r} ({source.path}); give the model of this image, or pass "
+                f"{force_name} to use this model anyway"
+            )
 
 
 def model_for_image(
@@ -220,10 +241,19 @@ def model_for_image(
     crop_offset: ArrayLike | None = None,
     crop: bool = True,
     names: Mapping[str, str] | None = None,
+    force: bool = False,
 ) -> SensorModel:
     """The model that addresses ``image``'s pixels: ``model``, or a :class:`CroppedModel` of it.
 
-    Rules, in order:
+    First, unless ``force=True``, the model must describe this image: where both the model
+    (its optional ``source_ids``, :attr:`SensorModelBase.source_ids
+    <geoblock.models.base.SensorModelBase.source_ids>`) and the raster
+    (:attr:`ImageSource.source_ids <geoblock.io.images.ImageSource.source_ids>`) carry an id
+    of the same kind (a DigitalGlobe catalog id, a Pleiades datastrip, a DIMAP dataset name,
+    a NITF ``IID2``...), the ids must be equal. Ids of different kinds, or missing on either
+    side, are no evidence and pass; a crop keeps its scene's ids and passes.
+
+    Then, in order:
 
     1. ``crop=False``: ``model`` as it is, whatever the shapes (image pixel ``(r, c)`` is
        model pixel ``(r, c)``; the caller says so).
@@ -246,9 +276,12 @@ def model_for_image(
     crop : bool
         False: use ``model`` as it is (no shift, no shape check).
     names : mapping, optional
-        How the refusal names the ways out: ``{"crop_offset": ..., "no_crop": ...}``;
-        default the Python arguments (the CLI passes ``--crop-offset ROW COL`` and
-        ``--no-crop``).
+        How the refusal names the ways out: ``{"crop_offset": ..., "no_crop": ...,
+        "force": ...}``; default the Python arguments (the CLI passes ``--crop-offset ROW
+        COL``, ``--no-crop`` and ``--force``).
+    force : bool
+        True: skip the id check (use a model whose ids differ from the image's, e.g. a
+        model known to fit although its vendor id says otherwise).
 
     Returns
     -------
@@ -256,6 +289,9 @@ def model_for_image(
 
     Raises
     ------
+    ModelImageMismatchError
+        The model and the image carry ids of the same kind that differ (``force=False``);
+        the message names both ids, both files and how to override.
     CropError
         The shapes differ and nothing says where the image lies in the scene, or the crop
         does not lie inside the scene; the message gives the image, both shapes, the offset
@@ -263,11 +299,15 @@ def model_for_image(
     """
     from geoblock.io.images import open_image
 
-    if not crop:
-        return model
     say = dict(PYTHON_NAMES)
     say.update(names or {})
+    if not crop and force:
+        return model
     source = open_image(image)
+    if not force:
+        _check_ids(model, source, say["force"])
+    if not crop:
+        return model
     shape = tuple(int(v) for v in source.shape)
     scene = tuple(int(v) for v in model.shape)
     if crop_offset is not None:

@@ -44,6 +44,7 @@ import numpy as np
 
 from geoblock.errors import GeoblockIOError, ModelFormatError
 from geoblock.io.metadata import Fields, decode_text, parse_utc, read_bytes, read_xml
+from geoblock.io.vsi import as_path
 
 __all__ = [
     "SECTIONS",
@@ -247,7 +248,7 @@ def find_isd(path: str | os.PathLike[str]) -> Path | dict[str, Path] | None:
         The combined XML, or the section files by section name; None if no support data is
         found (other readers are then asked).
     """
-    p = Path(path)
+    p = as_path(path)  # a GDAL virtual path (/vsizip/...) stays one
     if p.is_dir():
         found = [q for q in sorted(p.iterdir()) if q.suffix.lower() == ".xml"
                  and q.is_file() and _is_isd_xml(q)]
@@ -399,7 +400,7 @@ def _keyword_tree(text: str, source: Path, section: str) -> dict[str, Any]:
 
 def _load(found: Path | dict[str, Path]) -> tuple[dict[str, Any], dict[str, Path]]:
     """``({section: tree}, {section: file})`` of a combined XML or of section files."""
-    if isinstance(found, Path):
+    if not isinstance(found, dict):  # one ISD XML (a Path or a VsiPath)
         root = read_xml(found, _error).root
         if root.tag.lower() != "isd":
             raise IsdFormatError(found, "(root)", f"root element <{root.tag}> is not <isd>")
@@ -474,7 +475,7 @@ def read_isd(path: str | os.PathLike[str]) -> Isd:
     GeoblockIOError
         A file cannot be read.
     """
-    p = Path(path)
+    p = as_path(path)  # a GDAL virtual path (/vsizip/...) stays one
     found = find_isd(p)
     if found is None:
         raise IsdFormatError(p, "(file)", "no DigitalGlobe support data (an <isd> XML or "

@@ -59,8 +59,8 @@ def geoblock_read_sensor_model(path, model_name, options):
 
 
 def _is_support_file(path) -> bool:
-    from pathlib import Path
+    from geoblock.io.vsi import as_path
 
-    p = Path(path)
+    p = as_path(path)
     return p.is_dir() or p.suffix.lower() in (".xml", ".imd", ".eph", ".att", ".geo", ".rpb",
                                               ".til")

@@ -93,6 +93,10 @@ class RpcModel(SensorModelBase):
         ``HEIGHT_OFF +/- height_limit * HEIGHT_SCALE``. Looser than the horizontal limit because
         vendors often fit over a narrow height range (12.5 m in GDAL's test_transformer_11)
         and the height terms extrapolate gently; GDAL checks no domain at all.
+    source_ids : mapping of str to str, optional
+        Ids of the image the file describes, by kind (:attr:`SensorModelBase.source_ids
+        <geoblock.models.base.SensorModelBase.source_ids>`): ``ossim_image_id`` of an OSSIM
+        ``.geom``, ``catalog_id`` of a DigitalGlobe ISD, a raster's own ids. Not serialised.
 
     Notes
     -----
@@ -117,7 +121,9 @@ class RpcModel(SensorModelBase):
         *,
         domain_limit: float = 1.5,
         height_limit: float = 5.0,
+        source_ids: Mapping[str, str] | None = None,
     ) -> None:
+        self._source_ids = dict(source_ids or {})
         if not isinstance(rpc, Rpc00b):
             raise TypeError(f"RpcModel needs an Rpc00b, got {type(rpc).__name__}")
         rpc.check_plausible()
@@ -221,7 +227,12 @@ class RpcModel(SensorModelBase):
     def with_shape(self, shape: tuple[int, int]) -> Self:
         """The same RPC with another image shape."""
         return type(self)(self._rpc, shape, domain_limit=self._domain_limit,
-                          height_limit=self._height_limit)
+                          height_limit=self._height_limit, source_ids=self._source_ids)
+
+    @property
+    def source_ids(self) -> Mapping[str, str]:
+        """Ids of the image the RPC was read for, by kind (empty when the file has none)."""
+        return dict(self._source_ids)
 
     def to_dict(self) -> dict[str, Any]:
         return {

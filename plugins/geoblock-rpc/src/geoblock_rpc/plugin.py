@@ -56,15 +56,18 @@ def geoblock_read_sensor_model(
     """
     from geoblock_rpc.model import RpcModel
 
-    if (model_name is not None and model_name != RpcModel.name) or Path(path).is_dir():
+    from geoblock.io.vsi import as_path
+
+    path = as_path(path)  # a VsiPath stays one: Path() would collapse its "//"
+    if (model_name is not None and model_name != RpcModel.name) or path.is_dir():
         return None
     from geoblock_rpc.readers import _read
 
     result = _read(path, dict(options))
     if result is None:
         return None
-    rpc, shape, _extra = result
-    return RpcModel(rpc, shape)
+    rpc, shape, extra = result
+    return RpcModel(rpc, shape, source_ids=extra.get("source_ids"))
 
 
 @geoblock.hookimpl(trylast=True)

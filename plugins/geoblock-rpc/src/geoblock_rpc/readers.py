@@ -69,6 +69,7 @@ import numpy as np
 from geoblock.errors import GeoblockIOError, ModelFormatError, UnsupportedFormatError
 from geoblock.io import open_image, open_quietly
 from geoblock.io.metadata import ErrorFactory, Fields, XmlFields, decode_text, read_bytes, read_xml
+from geoblock.io.vsi import VsiPath, as_path
 from geoblock.models import image_shape
 from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 
@@ -179,7 +180,7 @@ def sniff_rpc_format(path: str | os.PathLike[str]) -> str | None:
     Returns one of ``"gdal"`` (a binary raster for GDAL), ``"xml"`` (decided when parsing:
     VRT, DigitalGlobe ISD, DIMAP), ``"rpc-txt"``, ``"rpb"``, ``"ossim-kwl"``, ``"json"``.
     """
-    path = Path(path)
+    path = as_path(path)
     head = read_bytes(path, _HEAD_BYTES)
     if not head:
         return None
@@ -284,7 +285,8 @@ def _parse_gdal(path: Path) -> Result | None:
     if driver == "GTiff":
         items = _exact_tag_values(path, items)
     rpc = Rpc00b.from_gdal(items, source=_src(path))
-    extra: dict[str, Any] = {"format": "gdal", "driver": driver, "files": files}
+    extra: dict[str, Any] = {"format": "gdal", "driver": driver, "files": files,
+                             "source_ids": dict(open_image(path).source_ids)}
     satid = imd.get("SATID") or imd.get("IMAGE_1.SATID")
     if satid:
         extra["satellite_id"] = satid.strip('"')
@@ -392,6 +394,9 @@ def _parse_ossim(path: Path, text: str) -> Result:
     sensor = get.get("sensor") or get.get("support_data.sensorID")
     if sensor:
         extra["satellite_id"] = sensor
+    image_id = (get.get("image_id") or get.get("support_data.image_id") or "").strip()
+    if image_id:
+        extra["source_ids"] = {"ossim_image_id": image_id}
     shape = None
     if "number_lines" in get and "number_samples" in get:
         shape = _image_size(path, get["number_lines"], get["number_samples"],
@@ -492,6 +497,9 @@ def _parse_isd(path: Path, root: ET.Element) -> Result:
     _require(keys, _SCALAR_KEYS + _POLY_KEYS, path, "ISD <RPB><IMAGE>")
     rpc = _rpc_from_fields(Fields(_src(path), kv, error=_field_error("ISD <RPB><IMAGE>")), keys)
     extra: dict[str, Any] = {"format": "dg-isd"}
+    catid = (root.findtext("IMD/IMAGE/CATID") or "").strip()
+    if catid:
+        extra["source_ids"] = {"catalog_id": catid}
     satid = root.findtext("RPB/SATID") or root.findtext("IMD/IMAGE/SATID")
     if satid:
         extra["satellite_id"] = satid.strip()
@@ -772,7 +780,7 @@ def _read(path: Path, options: Mapping[str, Any]) -> Result | None:
                 f"{getattr(rpc, scale):g} give no finite image extent"
             )
     image = options.get("image")
-    image = None if image is None else Path(image)
+    image = None if image is None else as_path(image)
     crop = options.get("crop_offset")
     if options.get("crop_from_geotransform"):
         source = image if image is not None else path
@@ -839,7 +847,7 @@ def read_rpc(path: str | os.PathLike[str], **options: Any) -> Result:
         ``crop_from_geotransform``); a :class:`~geoblock.errors.ModelFormatError` and a
         ``TypeError``, naming the file and the option.
     """
-    path = Path(path)
+    path = as_path(path)
     result = _read(path, options)
     if result is None:
         raise UnsupportedFormatError(

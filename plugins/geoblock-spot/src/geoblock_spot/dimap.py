@@ -75,6 +75,7 @@ import numpy as np
 
 from geoblock.errors import GeoblockError, GeoblockIOError, ModelFormatError, ParameterSetError
 from geoblock.io.metadata import XmlFields, parse_utc, read_bytes, read_xml
+from geoblock.io.vsi import as_path
 from geoblock.models.parameters import ParameterSet
 from geoblock.pixels import PIXEL_CENTRE
 
@@ -591,7 +592,7 @@ def _omega_cross(p: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------- sniffing
 def _metadata_file(path: str | os.PathLike[str]) -> Path:
     """The metadata file: ``path`` itself, or ``METADATA.DIM`` inside a product directory."""
-    path = Path(path)
+    path = as_path(path)  # a GDAL virtual path (/vsizip/...) stays one
     if path.is_dir():
         for child in sorted(path.iterdir()):
             if child.name.upper() == "METADATA.DIM" and child.is_file():

@@ -87,6 +87,7 @@ import numpy as np
 from geoblock import coords
 from geoblock.errors import GeoblockIOError
 from geoblock.io.metadata import XmlFields, read_bytes, read_xml
+from geoblock.io.vsi import as_path
 from geoblock.models.linescan import (
     Attitude,
     Ephemeris,
@@ -271,7 +272,7 @@ def is_dimap2(path: str | os.PathLike[str]) -> bool:
     holds one of these elements' tags is claimed too, so that :func:`read_dimap2` names the
     XML error instead of the file going unrecognised.
     """
-    p = Path(path)
+    p = as_path(path)
     if not p.is_file():
         return False
     try:
@@ -319,7 +320,7 @@ def read_dimap2(path: str | os.PathLike[str]) -> Dimap2:
         message), attitudes in a frame other than ECEF, velocities that are neither
         Earth-fixed nor inertial.
     """
-    p = Path(path)
+    p = as_path(path)
     doc = read_xml(p, DimapFormatError)
     root = doc.root
     if root.tag == "Dimap_Document" and root.find("Geometric_Data/Refined_Model") is not None:
@@ -684,7 +685,7 @@ def dimap2_model(
         ``parameters`` is none of the above, or ``"dg"`` without ``accuracy_m``; the message
         names the file.
     """
-    path = source.path if isinstance(source, Dimap2) else Path(source)
+    path = source.path if isinstance(source, Dimap2) else as_path(source)
     if accuracy_m is not None:
         with file_named(path, "(option accuracy_m)"):
             location_accuracy(accuracy_m, "the location accuracy")
