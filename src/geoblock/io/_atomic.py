@@ -12,6 +12,7 @@ of the same ``NAME`` removes such *stale* temporaries (:func:`remove_stale_tempo
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import sys
@@ -23,7 +24,7 @@ from pathlib import Path
 from geoblock.errors import GeoblockIOError
 
 __all__ = ["atomic_directory", "atomic_path", "remove_stale_temporaries",
-           "temporary_name_pattern"]
+           "temporary_name_pattern", "write_error"]
 
 #: A temporary not modified for this many seconds, and held open by no process of this host
 #: that the user can inspect (``/proc``), is stale.
@@ -31,6 +32,111 @@ STALE_AFTER_S = 10.0
 #: Where ``/proc`` cannot tell whether a process holds the file (macOS, Windows), a temporary
 #: is stale only when it has not been modified for this many seconds.
 STALE_AFTER_WITHOUT_PROC_S = 3600.0
+
+
+#: The failures a user can act on, in plain words (``os.strerror`` gives the system's text, which
+#: is also how GDAL reports them).
+PLAIN_ERRORS = {
+    errno.ENOSPC: "no space left on device",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied",
+}
+
+
+def _write_errors() -> tuple[type[BaseException], ...]:
+    """What a failed write raises: ``OSError`` (rasterio's I/O errors are ones), and GDAL's own
+    errors (``rasterio._err.CPLE_BaseError``) once rasterio is loaded (a writer through GDAL
+    has imported it; this module does not)."""
+    gdal = sys.modules.get("rasterio._err")
+    base = getattr(gdal, "CPLE_BaseError", None)
+    return (OSError,) if base is None else (OSError, base)
+
+
+def _chain(exc: BaseException) -> list[BaseException]:
+    """``exc`` and its causes and contexts, outermost first."""
+    seen: list[BaseException] = []
+    while exc is not None and not any(exc is e for e in seen):
+        seen.append(exc)
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return seen
+
+
+def _plain_errno(exc: BaseException, folder: Path) -> int | None:
+    """The :data:`PLAIN_ERRORS` code behind ``exc``: an ``errno`` in its chain, else the
+    system's text of one in a message (GDAL's: ``... failed: No space left on device``), else,
+    for an error of GDAL's that says neither (``Write failed``), what ``folder``'s file system
+    shows now, while the temporary still takes its space: full, read-only, not writable."""
+    chain = _chain(exc)
+    for e in chain:
+        if isinstance(e, OSError) and e.errno in PLAIN_ERRORS:
+            return e.errno
+    for e in chain:
+        for code in PLAIN_ERRORS:
+            if os.strerror(code).lower() in str(e).lower():
+                return code
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return None  # the system said what it was: another failure
+    try:
+        fs = os.statvfs(folder)
+    except (OSError, AttributeError):  # no statvfs on Windows
+        return None
+    if fs.f_flag & os.ST_RDONLY:
+        return errno.EROFS
+    if fs.f_bavail * fs.f_frsize < 1 << 20:  # less than 1 MiB: a full disk for GDAL's writes
+        return errno.ENOSPC
+    if not os.access(folder, os.W_OK):
+        return errno.EACCES
+    return None
+
+
+def write_error(path: str | os.PathLike[str], exc: BaseException, what: str = "",
+                temporary: str | os.PathLike[str] | None = None) -> GeoblockIOError:
+    """The :class:`~geoblock.errors.GeoblockIOError` for a failure ``exc`` to write ``path``.
+
+    One line that names ``path`` (the user's output), never the temporary it was written
+    under. A full disk, an exceeded quota, a read-only file system or a folder the user may
+    not write (``ENOSPC``, ``EDQUOT``, ``EROFS``, ``EACCES``) is said in plain words with the
+    folder: ``cannot write tp.csv: no space left on device (/data/out)``; the exception's
+    ``errno`` is then that code. Other failures keep the system's or GDAL's message.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The final name of the file (or directory) being written.
+    exc : BaseException
+        The failure: an ``OSError`` (rasterio's I/O errors are ones) or GDAL's
+        ``CPLE_BaseError``. GDAL's errors often say only ``Write failed``: then the folder's
+        file system is looked at, so call this before the temporary is removed.
+    what : str
+        What is written (``"point file "``).
+    temporary : str or path-like, optional
+        The temporary the write went to: its name, and that of any temporary of ``path``
+        (:func:`temporary_name_pattern`), is replaced by ``path``'s in the message.
+
+    Returns
+    -------
+    GeoblockIOError
+        To raise ``from exc``.
+    """
+    path = Path(path)
+    folder = path.parent.absolute()
+    mine = isinstance(exc, GeoblockIOError)  # geoblock's message: an input, an inner write
+    code = exc.errno if isinstance(exc, GeoblockIOError) else _plain_errno(exc, folder)
+    if code in PLAIN_ERRORS:
+        error = GeoblockIOError(f"cannot write {what}{path}: {PLAIN_ERRORS[code]} ({folder})")
+        error.errno = code
+        return error
+    if isinstance(exc, OSError) and exc.strerror and not mine:
+        detail = exc.strerror  # without the file name, which may be the temporary
+    else:
+        detail = str(exc)
+        if temporary is not None:
+            detail = detail.replace(str(temporary), str(path))
+            detail = detail.replace(Path(temporary).name, path.name)
+        detail = temporary_name_pattern(path.name).sub(path.name, detail)  # a COG's second
+    detail = " ".join(part.strip() for part in detail.splitlines() if part.strip())
+    return GeoblockIOError(f"cannot write {what}{path}: {detail or type(exc).__name__}")
 
 
 def temporary_name_pattern(name: str) -> re.Pattern[str]:
@@ -158,7 +264,8 @@ def atomic_path(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
     ------
     GeoblockIOError
         The folder does not exist, or writing or renaming fails (an ``OSError``, which
-        rasterio's I/O errors are); the message names the path.
+        rasterio's I/O errors are, or GDAL's ``CPLE_BaseError``); the message names ``path``,
+        never the temporary, in one line (:func:`write_error`: a full disk says so).
     """
     path = Path(path)
     folder = path.parent
@@ -169,10 +276,11 @@ def atomic_path(path: str | os.PathLike[str], what: str = "") -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, path)
-    except OSError as exc:
-        raise GeoblockIOError(f"cannot write {what}{path}: {exc}") from exc
+    except _write_errors() as exc:
+        raise write_error(path, exc, what, tmp) from exc
     finally:
-        tmp.unlink(missing_ok=True)
+        if os.path.lexists(tmp):  # not unlink(missing_ok): a read-only file system says EROFS
+            tmp.unlink()
 
 
 @contextlib.contextmanager
@@ -191,7 +299,8 @@ def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[P
     Raises
     ------
     GeoblockIOError
-        ``path`` exists and is not a directory, or a rename fails (names the path).
+        ``path`` exists and is not a directory, or writing or a rename fails (one line naming
+        ``path``, never the temporary: :func:`write_error`).
     """
     import shutil
     import tempfile
@@ -199,8 +308,11 @@ def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[P
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise GeoblockIOError(f"cannot write {what}{path}: it exists and is not a directory")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmpdir", dir=path.parent))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmpdir", dir=path.parent))
+    except OSError as exc:
+        raise write_error(path, exc, what) from exc
     try:
         yield tmp
         os.chmod(tmp, 0o755)
@@ -212,7 +324,7 @@ def atomic_directory(path: str | os.PathLike[str], what: str = "") -> Iterator[P
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, path)
-    except OSError as exc:
-        raise GeoblockIOError(f"cannot write {what}{path}: {exc}") from exc
+    except _write_errors() as exc:
+        raise write_error(path, exc, what, tmp) from exc
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

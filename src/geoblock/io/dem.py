@@ -428,7 +428,8 @@ def write_dem(
     DemError
         Invalid heights, transform, CRS, ``vertical`` or ``dtype``.
     GeoblockIOError
-        The directory does not exist or GDAL cannot write.
+        The directory does not exist or GDAL cannot write: one line naming ``path``, never
+        the temporary (a full disk says so, :func:`geoblock.io._atomic.write_error`).
     """
     import rasterio
     from affine import Affine
@@ -459,7 +460,7 @@ def write_dem(
     if compress:
         profile["compress"] = compress
     datum = "EGM96 geoid" if vertical == "geoid" else "WGS84 ellipsoid"
-    with atomic_path(path) as tmp, rasterio.open(tmp, "w", **profile) as dst:
+    with atomic_path(path, "DEM ") as tmp, rasterio.open(tmp, "w", **profile) as dst:
         for r0, r1 in strips:  # 1024 rows at a time: no full-size copy of a large grid
             block = arr[r0:r1]
             dst.write(np.where(np.isnan(block), float(nodata), block).astype(dtype), 1,

@@ -3,7 +3,10 @@ atomically (a temporary beside the target, then a rename: a reader never sees ha
 a failure leaves any previous file intact).
 
 These are the doors the rest of geoblock uses for files that are not sensor models, DEMs,
-images, point files or block files (reports, scenario definitions, demo outputs).
+images, point files or block files (reports, scenario definitions, demo outputs), and that
+plugins use for theirs. :func:`write_error` is the one-line error of a failed write (naming
+the user's path, never a temporary; a full disk in plain words) for a writer that stages its
+file itself (:func:`staged_files`).
 """
 
 from __future__ import annotations
@@ -22,10 +25,11 @@ from typing import IO, Any
 
 from geoblock.errors import GeoblockIOError, MetadataFieldError, OutputDirectoryError
 from geoblock.io._atomic import atomic_directory as _atomic_directory
-from geoblock.io._atomic import atomic_path
+from geoblock.io._atomic import atomic_path, write_error
 
 __all__ = [
     "atomic_directory",
+    "check_replaceable",
     "make_directory",
     "read_json",
     "read_text",
@@ -36,6 +40,7 @@ __all__ = [
     "write_bytes",
     "write_csv",
     "write_json",
+    "write_error",
     "write_text",
     "write_with",
 ]
@@ -93,19 +98,26 @@ def read_json(path: str | os.PathLike[str], what: str = "") -> Any:
 
 
 def write_with(
-    path: str | os.PathLike[str], write: Callable[[IO[bytes]], object], what: str = ""
+    path: str | os.PathLike[str], write: Callable[[IO[Any]], object], what: str = "",
+    *, encoding: str | None = None,
 ) -> Path:
-    """Call ``write(file)`` on a binary temporary beside ``path``, then rename it to ``path``.
+    """Call ``write(file)`` on a temporary beside ``path``, then rename it to ``path``.
 
-    The file is made world-readable (0644), as a plain ``open`` under the usual umask would.
+    ``file`` is binary, or text in ``encoding`` when given (line ends written as they are,
+    as ``open(..., newline="")``: what the ``csv`` module needs). The file is made
+    world-readable (0644), as a plain ``open`` under the usual umask would.
 
     Raises
     ------
     GeoblockIOError
-        The folder does not exist or the file cannot be written (names the path).
+        The folder does not exist or the file cannot be written: one line naming ``path``
+        (never the temporary); a full disk, a quota, a read-only file system or a missing
+        permission in plain words (:func:`geoblock.io._atomic.write_error`). ``path`` is then
+        as it was.
     """
     with atomic_path(path, what) as tmp:
-        with open(tmp, "wb") as f:
+        with (open(tmp, "wb") if encoding is None
+              else open(tmp, "w", encoding=encoding, newline="")) as f:
             write(f)
         os.chmod(tmp, 0o644)
     return Path(path)
@@ -230,6 +242,26 @@ def atomic_directory(
     GeoblockIOError
         A rename fails (names the path).
     """
+    check_replaceable(path, what, replaces=replaces)
+    with _atomic_directory(path, what) as tmp:
+        yield tmp
+
+
+def check_replaceable(
+    path: str | os.PathLike[str],
+    what: str = "",
+    *,
+    replaces: Callable[[Path], bool] | None = None,
+) -> None:
+    """Refuse, before any work, a directory :func:`atomic_directory` would refuse to replace.
+
+    Raises
+    ------
+    OutputDirectoryError
+        ``path`` holds an entry ``replaces`` does not accept (names it), or is not a directory.
+    GeoblockIOError
+        ``path`` cannot be listed.
+    """
     path = Path(path)
     if path.exists() or path.is_symlink():
         if path.is_symlink() or not path.is_dir():
@@ -249,8 +281,6 @@ def atomic_directory(
                 "write, and writing would replace the directory as a whole; choose another "
                 "directory (or empty it yourself)"
             )
-    with _atomic_directory(path, what) as tmp:
-        yield tmp
 
 
 @contextmanager
@@ -286,9 +316,7 @@ def staged_files(
                 if final.exists():
                     shutil.copy2(final, stage / final.name)
             except OSError as exc:
-                raise GeoblockIOError(
-                    f"cannot write {what}{final}: {exc.strerror or exc}"
-                ) from exc
+                raise write_error(final, exc, what) from exc
             staged.append(stage / final.name)
         yield staged
         for stage, final in zip(stages, finals, strict=True):
@@ -296,9 +324,7 @@ def staged_files(
                 try:
                     os.replace(item, final.parent / item.name)
                 except OSError as exc:
-                    raise GeoblockIOError(
-                        f"cannot write {what}{final.parent / item.name}: {exc.strerror or exc}"
-                    ) from exc
+                    raise write_error(final.parent / item.name, exc, what) from exc
     finally:
         for stage in stages:
             shutil.rmtree(stage, ignore_errors=True)

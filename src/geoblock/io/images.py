@@ -751,7 +751,9 @@ def write_ortho(
     Raises
     ------
     GeoblockIOError
-        The destination directory does not exist, or GDAL cannot write.
+        The destination directory does not exist, or GDAL cannot write: one line naming
+        ``path``, never the temporary; a full disk, a quota, a read-only file system or a
+        missing permission in plain words (:func:`geoblock.io._atomic.write_error`).
     EmptyOutputError
         No pixel is valid and ``empty="error"``.
     """

@@ -19,6 +19,7 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 
 from geoblock.errors import GeoblockIOError, PointFileError
+from geoblock.io.files import write_with
 
 if TYPE_CHECKING:
     from geoblock.adjust.observations import GroundPoints, ImagePoints
@@ -139,7 +140,23 @@ def _decoded(name: str, read: Callable[[], str | bytes]) -> str:
 def write_points(
     target: str | os.PathLike[str] | IO[str], columns: Mapping[str, np.ndarray]
 ) -> None:
-    """Write column arrays as CSV; floats use the shortest text that round-trips exactly."""
+    """Write column arrays as CSV; floats use the shortest text that round-trips exactly.
+
+    Parameters
+    ----------
+    target : path, ``"-"`` or text stream
+        A file is written atomically (:func:`geoblock.io.files.write_with`: under a temporary
+        beside it, renamed when complete), so that a failure (a full disk, ``Ctrl-C``)
+        leaves a previous file as it was and no temporary; ``"-"`` writes standard output
+        and a stream is written as it is.
+    columns : mapping of str to array
+        The columns, in order, all of one length.
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be written: one line naming ``target`` (a full disk says so).
+    """
     names = list(columns)
     arrays = [np.asarray(columns[c]).ravel() for c in names]
     n = arrays[0].size if arrays else 0
@@ -162,13 +179,7 @@ def write_points(
     elif str(target) == "-":
         emit(sys.stdout)
     else:
-        try:
-            with open(target, "w", encoding="utf-8", newline="") as f:
-                emit(f)
-        except OSError as exc:
-            raise GeoblockIOError(
-                f"cannot write point file {str(target)!r}: {exc.strerror}"
-            ) from exc
+        write_with(target, emit, "point file ", encoding="utf-8")
 
 
 def read_observations(
