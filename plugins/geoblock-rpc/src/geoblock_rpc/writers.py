@@ -12,8 +12,9 @@ What each format keeps:
 * ``"rpb"``: coefficients, offsets, scales, ``errBias``/``errRand`` (``-1`` when unknown);
   RPB has no validity box, so it is dropped (the projection is unchanged).
 * ``"gtiff"``: writes GDAL ``RPC`` metadata into the GeoTIFF at ``path``. An existing GeoTIFF
-  is updated in place (its pixels, geotransform and other tags are kept; only the RPC is
-  replaced). Otherwise a new 1-band ``uint8`` GeoTIFF of the model's shape is created:
+  is updated (its pixels, geotransform and other tags are kept; only the RPC is replaced),
+  through a copy put in its place when complete. Otherwise a new 1-band ``uint8`` GeoTIFF of
+  the model's shape is created:
   tiled 256x256, ``SPARSE_OK=TRUE`` and deflate, so no pixel block is written and even a
   40 000 x 40 000 placeholder is a few hundred kB (the tile index). The GeoTIFF RPC tag has
   no validity box either.
@@ -27,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from geoblock.errors import ModelFormatError
-from geoblock.io import open_quietly
+from geoblock.io import files, open_quietly
 from geoblock_rpc.model import RpcModel
 from geoblock_rpc.rpc00b import Rpc00b
 
@@ -99,15 +100,19 @@ def write_rpc_txt(model: RpcModel, path: str | os.PathLike[str]) -> Path:
     ----------
     model : RpcModel
     path : str or path-like
-        Destination (GDAL picks it up as a sidecar when named ``<image>_RPC.TXT``).
+        Destination (GDAL picks it up as a sidecar when named ``<image>_RPC.TXT``); written
+        atomically (:func:`geoblock.io.files.write_bytes`).
 
     Returns
     -------
     pathlib.Path
+
+    Raises
+    ------
+    GeoblockIOError
+        The file cannot be written (one line naming ``path``; a previous file is kept).
     """
-    path = Path(path)
-    path.write_text(rpc_txt_text(_rpc(model)), encoding="ascii")
-    return path
+    return files.write_bytes(path, rpc_txt_text(_rpc(model)).encode("ascii"), "RPC file ")
 
 
 def write_rpb(model: RpcModel, path: str | os.PathLike[str], satellite_id: str = "UNKNOWN",
@@ -118,20 +123,28 @@ def write_rpb(model: RpcModel, path: str | os.PathLike[str], satellite_id: str =
     ----------
     model : RpcModel
     path : str or path-like
-        Destination (GDAL picks it up as a sidecar when named ``<image>.RPB``).
+        Destination (GDAL picks it up as a sidecar when named ``<image>.RPB``); written
+        atomically (:func:`geoblock.io.files.write_bytes`).
     satellite_id, band_id : str
         ``satId`` and ``bandId`` header values.
 
     Returns
     -------
     pathlib.Path
+
+    Raises
+    ------
+    ModelFormatError
+        ``satellite_id`` or ``band_id`` holds a quote or a newline.
+    GeoblockIOError
+        The file cannot be written (one line naming ``path``; a previous file is kept).
     """
     path = Path(path)
     for name, value in (("satellite_id", satellite_id), ("band_id", band_id)):
         if '"' in value or "\n" in value:
             raise ModelFormatError(f"{path}: {name} {value!r} cannot hold quotes or newlines")
-    path.write_text(rpb_text(_rpc(model), satellite_id, band_id), encoding="ascii")
-    return path
+    return files.write_bytes(path, rpb_text(_rpc(model), satellite_id, band_id).encode("ascii"),
+                             "RPB file ")
 
 
 def _gdal_items(rpc: Rpc00b) -> dict[str, str]:
@@ -148,9 +161,10 @@ def write_gtiff(model: RpcModel, path: str | os.PathLike[str], create: bool = Tr
     ----------
     model : RpcModel
     path : str or path-like
-        An existing GeoTIFF is updated in place (only its RPC changes). A missing file is
-        created as a sparse, tiled 1-band ``uint8`` GeoTIFF of ``model.shape`` (no pixel data
-        is written) unless ``create`` is False.
+        An existing GeoTIFF is updated (only its RPC changes): a copy beside it is, then put
+        in its place, so that a failure leaves it as it was. A missing file is created as a
+        sparse, tiled 1-band ``uint8`` GeoTIFF of ``model.shape`` (no pixel data is written)
+        unless ``create`` is False, atomically too.
     create : bool
         Whether a missing file may be created.
 
@@ -163,26 +177,49 @@ def write_gtiff(model: RpcModel, path: str | os.PathLike[str], create: bool = Tr
     ModelFormatError
         ``path`` exists but is not a GeoTIFF GDAL can update, or is missing and ``create``
         is False.
+    GeoblockIOError
+        The file cannot be written (one line naming ``path``: a full disk says so).
     """
     from rasterio.errors import RasterioIOError
 
     path = Path(path)
     items = _gdal_items(_rpc(model))
-    if path.exists():
-        try:
-            with open_quietly(path, "r+") as ds:
-                if ds.driver != "GTiff":
-                    raise ModelFormatError(
-                        f"{path}: exists and is a {ds.driver} raster, not a GeoTIFF; "
-                        "refusing to write RPC tags into it")
-                ds.update_tags(ns="RPC", **items)
-        except (RasterioIOError, TypeError) as exc:
-            raise ModelFormatError(f"{path}: exists but is not a GeoTIFF GDAL can update "
-                                   f"({exc})") from exc
-        return path
-    if not create:
+    if not path.exists() and not create:
         raise ModelFormatError(f"{path}: does not exist (create=False)")
-    rows, cols = model.shape
+    # a copy of an existing file is updated, then put in its place (with any .aux.xml GDAL
+    # made): the user's file is replaced only when complete
+    with files.staged_files([path], "GeoTIFF ") as (staged,):
+        if staged.exists():
+            _update_tags(staged, path, items)
+        else:
+            try:
+                with open_quietly(staged, "w", **_placeholder_profile(model.shape)) as ds:
+                    ds.update_tags(ns="RPC", **items)
+            except (RasterioIOError, OSError) as exc:
+                raise files.write_error(path, exc, "GeoTIFF ", staged) from exc
+    return path
+
+
+def _update_tags(staged: Path, path: Path, items: dict[str, str]) -> None:
+    """Replace the RPC tags of ``staged``, the copy of the GeoTIFF ``path``."""
+    from rasterio.errors import RasterioIOError
+
+    try:
+        with open_quietly(staged, "r+") as ds:
+            if ds.driver != "GTiff":
+                raise ModelFormatError(
+                    f"{path}: exists and is a {ds.driver} raster, not a GeoTIFF; "
+                    "refusing to write RPC tags into it")
+            ds.update_tags(ns="RPC", **items)
+    except (RasterioIOError, TypeError) as exc:
+        reason = str(exc).replace(str(staged), str(path))
+        raise ModelFormatError(f"{path}: exists but is not a GeoTIFF GDAL can update "
+                               f"({reason})") from exc
+
+
+def _placeholder_profile(shape: tuple[int, int]) -> dict[str, Any]:
+    """A sparse, tiled 1-band ``uint8`` GeoTIFF of ``shape``: no pixel block is written."""
+    rows, cols = shape
     profile: dict[str, Any] = {
         "driver": "GTiff", "height": rows, "width": cols, "count": 1, "dtype": "uint8",
         "compress": "deflate", "sparse_ok": True,
@@ -192,9 +229,7 @@ def write_gtiff(model: RpcModel, path: str | os.PathLike[str], create: bool = Tr
         profile.update(tiled=True, blockxsize=block, blockysize=block)
     if rows * cols > 2**32 - 1:
         profile["bigtiff"] = "YES"
-    with open_quietly(path, "w", **profile) as ds:
-        ds.update_tags(ns="RPC", **items)
-    return path
+    return profile
 
 
 #: format name -> writer(model, path, **options)
