@@ -1,4 +1,5 @@
-"""SIGTERM cleans up like Ctrl-C, and stale temporaries of a killed run are removed next time.
+"""SIGTERM cleans up like Ctrl-C (exit codes 143 and 130), and stale temporaries of a killed run
+are removed next time.
 
 geoblock writes ``DIR/NAME`` under ``DIR/.NAME.<12 hex>.tmp`` and renames it when complete
 (geoblock.io._atomic). ``SIGTERM`` (``timeout``, ``kill``, batch schedulers) used to kill the
@@ -89,13 +90,78 @@ def test_sigterm_removes_the_temporary_and_exits_nonzero(tmp_path):
     assert list(tmp_path.iterdir()) == []  # neither the output nor a temporary
 
 
-def test_sigint_still_cleans_up(tmp_path):
+def test_sigint_cleans_up_and_exits_130(tmp_path):
+    """Ctrl-C: 128 + SIGINT, as a shell reports it (click alone exits 1)."""
     out = tmp_path / "result.txt"
     proc = _start_slow_write(out)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode != 0, err
+    assert proc.returncode == 128 + signal.SIGINT, err
+    assert "Aborted!" in err
+    assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+# A ``geoblock`` command line whose plugin command writes a point file with write_points; a
+# column's value 50 000 rows in stops the write there (the rows before it are in the
+# temporary), says READY and waits for the signal.
+_POINT_WRITER = textwrap.dedent(
+    """
+    import sys, time
+    import click
+    import numpy as np
+    import geoblock.plugins as plugins
+    from geoblock.hookspecs import hookimpl
+    from geoblock.io import write_points
+    from geoblock.cli.main import main
+
+    class Stop:
+        def __str__(self):
+            print("READY", flush=True)
+            time.sleep(120)
+            return "never"
+
+    class Points:
+        __name__ = "point-writer"
+
+        @hookimpl
+        def geoblock_register_commands(self, cli):
+            @cli.command(name="write-points")
+            @click.argument("out")
+            def write(out):
+                n = 100_000
+                kind = np.full(n, "gcp", dtype=object)
+                kind[50_000] = Stop()
+                write_points(out, {"id": np.arange(n), "lon": np.linspace(7, 8, n),
+                                   "lat": np.linspace(43, 44, n), "kind": kind})
+
+    pm = plugins.create_plugin_manager(entry_points=False, plugins=[Points()])
+    plugins.get_plugin_manager = lambda: pm
+    main(sys.argv[1:])
+    """
+)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_in_the_middle_of_write_points_keeps_the_old_file(tmp_path, signum):
+    out = tmp_path / "keep.csv"
+    old = b"id,lon,lat\n1,7.0,43.0\n"
+    out.write_bytes(old)
+    proc = subprocess.Popen([sys.executable, "-c", _POINT_WRITER, "write-points", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = proc.stdout.readline()
+    if line.strip() != "READY":
+        proc.kill()
+        _, err = proc.communicate()
+        pytest.fail(f"the point writer did not start: {line!r} {err}")
+    [tmp] = _temporaries(tmp_path, out.name)  # mid-write: 50 000 rows are in it
+    assert tmp.stat().st_size > 0
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum, err
+    assert "Aborted!" in err and "Traceback" not in err
+    assert out.read_bytes() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.csv"]
 
 
 def test_stale_temporary_of_a_killed_run_is_removed_by_the_next_write(tmp_path, affine_camera):
@@ -157,20 +223,21 @@ def test_atomic_path_writes_and_leaves_only_the_file(tmp_path):
     assert list(tmp_path.iterdir()) == [out]
 
 
-def test_main_restores_the_previous_sigterm_handler():
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_main_restores_the_previous_signal_handler(signum):
     from geoblock.cli.main import main
 
     def mine(signum, frame):  # pragma: no cover - never called
         pass
 
-    previous = signal.signal(signal.SIGTERM, mine)
+    previous = signal.signal(signum, mine)
     try:
         with pytest.raises(SystemExit) as info:
             main(["--version"])
         assert info.value.code == 0
-        assert signal.getsignal(signal.SIGTERM) is mine
+        assert signal.getsignal(signum) is mine
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signum, previous)
 
 
 def _image(path, shape):

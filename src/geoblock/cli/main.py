@@ -17,7 +17,8 @@
 * :func:`main` handles ``SIGTERM`` (what ``timeout``, ``kill`` and batch schedulers send) like
   ``Ctrl-C``: the signal raises :class:`Terminated` (a ``KeyboardInterrupt``) in the main
   thread, so every ``finally`` and context manager runs and removes its temporary files;
-  ``Aborted!`` is printed and the exit code is 143 (128 + SIGTERM).
+  ``Aborted!`` is printed and the exit code is 143 (128 + SIGTERM). ``Ctrl-C`` (``SIGINT``)
+  does the same with the exit code 130 (128 + SIGINT), where click alone exits 1.
 """
 
 from __future__ import annotations
@@ -332,20 +333,17 @@ def _exit_code(signum: int) -> int:
 
 @contextlib.contextmanager
 def _terminate_as_interrupt() -> Iterator[_SignalState]:
-    """While inside, ``SIGTERM`` raises :class:`Terminated` in the main thread.
+    """While inside, ``SIGTERM`` raises :class:`Terminated` and ``SIGINT`` (``Ctrl-C``) a
+    ``KeyboardInterrupt`` in the main thread, and the signal is recorded in the state.
 
-    Nothing is installed outside the main thread or where ``SIGTERM`` is ignored (the caller
-    asked for it). A second ``SIGTERM`` during the clean-up is ignored, so that the clean-up
-    completes (a scheduler's later ``SIGKILL`` still ends the process). The previous handler
-    is restored on leaving.
+    Recording ``SIGINT`` is what lets :func:`main` exit with 130 where click says 1. Nothing is
+    installed outside the main thread, nor for a signal that is ignored (the caller asked for
+    it: ``nohup``, a shell's background job). A second signal during the clean-up is ignored,
+    so that the clean-up completes (a scheduler's later ``SIGKILL`` still ends the process).
+    The previous handlers are restored on leaving.
     """
     state = _SignalState()
-    sigterm = getattr(signal, "SIGTERM", None)
-    if sigterm is None or threading.current_thread() is not threading.main_thread():
-        yield state
-        return
-    previous = signal.getsignal(sigterm)
-    if previous is signal.SIG_IGN:
+    if threading.current_thread() is not threading.main_thread():
         yield state
         return
 
@@ -353,30 +351,38 @@ def _terminate_as_interrupt() -> Iterator[_SignalState]:
         if state.received is not None:
             return  # already unwinding
         state.received = signum
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
         raise Terminated(signum)
 
-    try:
-        signal.signal(sigterm, handler)
-    except (ValueError, OSError):  # not allowed here (an embedding interpreter)
-        yield state
-        return
+    previous: dict[int, Any] = {}
+    for name in ("SIGTERM", "SIGINT"):
+        signum = getattr(signal, name, None)
+        if signum is None or signal.getsignal(signum) is signal.SIG_IGN:
+            continue
+        try:
+            previous[signum] = signal.signal(signum, handler)
+        except (ValueError, OSError):  # not allowed here (an embedding interpreter)
+            continue
     try:
         yield state
     finally:
-        signal.signal(sigterm, previous if previous is not None else signal.SIG_DFL)
+        for signum, before in previous.items():
+            signal.signal(signum, before if before is not None else signal.SIG_DFL)
 
 
 def main(args: Sequence[str] | None = None) -> Any:
     """Console-script entry point: ``geoblock [OPTIONS] COMMAND [ARGS]...``.
 
-    ``SIGTERM`` is handled like ``Ctrl-C`` (temporary files are removed, ``Aborted!``), with
-    the exit code 143.
+    ``Ctrl-C`` (``SIGINT``) and ``SIGTERM`` remove temporary files and print ``Aborted!``; the
+    exit code is 128 + the signal's number, as a shell reports a process the signal ended:
+    130 for ``Ctrl-C``, 143 for ``SIGTERM`` (click alone would exit 1).
     """
     with _terminate_as_interrupt() as state:
         try:
             return build_cli().main(args=args, prog_name="geoblock")
         except SystemExit:
-            if state.received is not None:  # click turned Terminated into Abort, exit 1
+            if state.received is not None:  # click turned the interrupt into Abort, exit 1
                 raise SystemExit(_exit_code(state.received)) from None
             raise
         except KeyboardInterrupt:
