@@ -21,6 +21,9 @@ __all__ = [
     "CropError",
     "ModelImageMismatchError",
     "DemCoverageError",
+    "DemDatumError",
+    "DemSettingError",
+    "GeoidNotFoundError",
     "DemError",
     "DemoOutdirError",
     "DuplicateModelError",
@@ -45,9 +48,13 @@ __all__ = [
     "PluginError",
     "PluginWarning",
     "PointFileError",
+    "ResolutionWarning",
     "ScenarioError",
     "SerializationError",
     "ShapeMismatchError",
+    "OutputExistsError",
+    "OutputIsInputError",
+    "OutputPathError",
     "SingularSystemError",
     "TooFewPointsError",
     "UnknownModelError",
@@ -164,6 +171,42 @@ class DemError(GeoblockError):
     """A DEM cannot be opened or used."""
 
 
+class DemSettingError(DemError, ValueError):
+    """A DEM needs a setting the caller did not give; the message ends with how to give it, in
+    the spelling of the caller's front end (:meth:`with_hint`: the command line's options, a
+    block file's ``[dem]`` keys, the Python API's arguments).
+
+    Attributes
+    ----------
+    path : str
+        The DEM file ('' when the error is not about one file).
+    reason : str
+        What is wrong, without the hint.
+    hint : str
+        How to put it right.
+    """
+
+    def __init__(self, path: str, reason: str, hint: str) -> None:
+        super().__init__(f"{f'DEM {path}: ' if path else ''}{reason}; {hint}")
+        self.path = path
+        self.reason = reason
+        self.hint = hint
+
+    def with_hint(self, hint: str) -> DemSettingError:
+        """The same error with another front end's hint."""
+        return type(self)(self.path, self.reason, hint)
+
+
+class DemDatumError(DemSettingError):
+    """A DEM's vertical datum is not stated (or is one geoblock does not convert) and the
+    caller did not state it (``--dem-vertical``, ``[dem] vertical``, ``vertical=``)."""
+
+
+class GeoidNotFoundError(DemSettingError):
+    """The geoid grid that geoid heights need is not found (``--geoid``, ``[dem] geoid``,
+    ``geoid=``, ``GEOBLOCK_GEOID``, or ``apt-get install proj-data``)."""
+
+
 class DemCoverageError(DemError, ValueError):
     """Points fall outside the DEM (strict mode only; the default is NaN and a status)."""
 
@@ -276,6 +319,22 @@ class OutputDirectoryError(GeoblockIOError):
     it yourself."""
 
 
+class OutputPathError(GeoblockIOError, ValueError):
+    """An output cannot be written where it was asked for: its directory is missing, read-only
+    or not writable, or it is a directory where a file is expected. Raised before any work
+    (:func:`geoblock.io.outputs.check_outputs`); the message names the user's path."""
+
+
+class OutputExistsError(OutputPathError):
+    """An output exists and replacing it was not asked for (``--overwrite``): nothing is
+    written, and the existing file is left as it was."""
+
+
+class OutputIsInputError(OutputPathError):
+    """An output is also an input of the same command, or two outputs are one file: refused
+    whatever ``--overwrite`` says (the message names both)."""
+
+
 class GeoblockWarning(UserWarning):
     """Root of geoblock's warnings."""
 
@@ -294,6 +353,11 @@ class NoIntersectionWarning(GeoblockWarning):
 
 class EmptyOutputWarning(GeoblockWarning):
     """An output was written although every pixel is nodata (asked for, e.g. ``--allow-empty``)."""
+
+
+class ResolutionWarning(GeoblockWarning):
+    """An output resolution far finer than the image's ground sample distance (likely a typo:
+    ``--res 0.02`` for ``0.2``); the message names both."""
 
 
 class PluginWarning(GeoblockWarning):

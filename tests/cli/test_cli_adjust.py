@@ -32,7 +32,7 @@ def block_dir(simulated, tmp_path):
 
 def test_adjust_writes_models_reports_and_figures(runner, cli, block_dir):
     out = block_dir / "adj"
-    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out),
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out),
                                  "--compare-single"])
     assert result.exit_code == 0, result.output
     assert "iteration" in result.output  # progress lines (stderr is mixed in by CliRunner)
@@ -68,7 +68,7 @@ def test_adjust_writes_models_reports_and_figures(runner, cli, block_dir):
 
 def test_adjusted_model_is_better_than_the_onboard_one(runner, cli, block_dir):
     out = block_dir / "adj"
-    assert runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out",
+    assert runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o",
                                str(out)]).exit_code == 0
     truth = read_points(block_dir / "points" / "truth.csv")
     sel = (truth["kind"] == "icp") & (truth["image"] == "strip3")
@@ -84,7 +84,7 @@ def test_adjusted_model_is_better_than_the_onboard_one(runner, cli, block_dir):
 
 def test_options_override_the_file(runner, cli, block_dir):
     out = block_dir / "adj"
-    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out),
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out),
                                  "--mode", "single", "--no-figures"])
     assert result.exit_code == 0, result.output
     assert json.loads((out / "report.json").read_text())["mode"] == "single"
@@ -98,7 +98,7 @@ def test_failure_writes_nothing_and_names_the_point(runner, cli, block_dir):
     keep = ~((image["id"] == victim) & (image["image"] != image["image"][tp[0]]))
     write_points(block_dir / "points" / "image.csv", {k: v[keep] for k, v in image.items()})
     out = block_dir / "adj"
-    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out)])
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out)])
     assert result.exit_code == 1
     assert victim in result.output and "one image" in result.output
     assert not out.exists()
@@ -108,30 +108,45 @@ def test_failure_writes_nothing_and_names_the_point(runner, cli, block_dir):
 def test_failure_keeps_a_previous_output(runner, cli, block_dir):
     out = block_dir / "adj"
     out.mkdir()
-    (out / "keep.txt").write_text("previous")
+    (out / "report.md").write_text("previous")  # a previous adjustment's output
     text = (block_dir / "block.toml").read_text().replace('method = "dg"', 'method = "mba"')
     (block_dir / "block.toml").write_text(text)
-    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out)])
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out),
+                                 "--overwrite"])
     assert result.exit_code == 1
     assert "'mba'" in result.output and "'dg'" in result.output  # the sets the model offers
-    assert (out / "keep.txt").read_text() == "previous"
+    assert (out / "report.md").read_text() == "previous"
 
 
 def test_an_output_directory_with_the_users_files_is_refused_not_replaced(runner, cli, block_dir):
-    """A successful run must not replace a directory holding files it did not write (a
-    mistyped --out would otherwise delete them); a previous output is replaced."""
+    """A run must not replace a directory holding files it did not write (a mistyped -o
+    would otherwise delete them), even with --overwrite, and says so before adjusting; an
+    existing output needs --overwrite, and then a previous output is replaced."""
     out = block_dir / "mine"
     out.mkdir()
     (out / "thesis.txt").write_text("precious")
-    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out", str(out)])
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out)])
+    assert result.exit_code == 1
+    assert "exists and is not empty" in result.output and "--overwrite" in result.output
+    assert "iteration" not in result.output  # refused before any work
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(out),
+                                 "--overwrite"])
     assert result.exit_code == 1
     assert "'thesis.txt'" in result.output and "choose another directory" in result.output
+    assert "iteration" not in result.output  # refused before any work
     assert [p.name for p in out.iterdir()] == ["thesis.txt"]
     again = block_dir / "again"
-    for _ in range(2):  # the second run replaces the first's output
-        result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "--out",
-                                     str(again), "--no-figures"])
-        assert result.exit_code == 0, result.output
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(again),
+                                 "--no-figures"])
+    assert result.exit_code == 0, result.output
+    before = (again / "report.json").read_bytes()
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(again),
+                                 "--no-figures"])  # the first run's output is not replaced
+    assert result.exit_code == 1 and "--overwrite" in result.output
+    assert (again / "report.json").read_bytes() == before
+    result = runner.invoke(cli, ["adjust", str(block_dir / "block.toml"), "-o", str(again),
+                                 "--no-figures", "--overwrite"])
+    assert result.exit_code == 0, result.output
     assert sorted(p.name for p in again.iterdir()) == ["models", "report.json", "report.md"]
 
 
@@ -152,7 +167,7 @@ def test_block_file_errors_name_the_file_and_field(runner, cli, block_dir, edit,
     text = path.read_text()
     assert edit[0] in text
     path.write_text(text.replace(edit[0], edit[1], 1))
-    result = runner.invoke(cli, ["adjust", str(path), "--out", str(block_dir / "adj")])
+    result = runner.invoke(cli, ["adjust", str(path), "-o", str(block_dir / "adj")])
     assert result.exit_code == 1, result.output
     line = [ln for ln in result.output.splitlines() if ln.startswith("Error:")]
     assert len(line) == 1, result.output
@@ -177,6 +192,6 @@ def test_simulate_then_adjust_with_relative_paths(runner, cli, tmp_path, monkeyp
 def test_help(runner, cli):
     result = runner.invoke(cli, ["adjust", "--help"])
     assert result.exit_code == 0
-    for word in ("BLOCK.toml", "--out", "--mode", "--robust", "--dem-control",
+    for word in ("BLOCK.toml", "--output", "--mode", "--robust", "--dem-control",
                  "--collocation", "--compare-single", "report.json"):
         assert word in result.output

@@ -84,7 +84,7 @@ correction = 0
 
 def test_the_block_removes_the_60_row_bias(ventoux, runner, cli):
     out = ventoux["dir"] / "adjusted"
-    result = runner.invoke(cli, ["adjust", str(ventoux["dir"] / "block.toml"), "--out", str(out)])
+    result = runner.invoke(cli, ["adjust", str(ventoux["dir"] / "block.toml"), "-o", str(out)])
     assert result.exit_code == 0, result.output
     report = json.loads((out / "report.json").read_text())
     a0, b0 = (p["value"] for p in report["parameters"]["right"])

@@ -42,7 +42,7 @@ def _shift_to_truth(ortho_path, true_model, raster, dem):
 
 def test_demo_tiny(runner, cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    result = runner.invoke(cli, ["demo", "--size", "tiny"])
+    result = runner.invoke(cli, ["demo", "--variant", "tiny"])
     assert result.exit_code == 0, result.output
     out = tmp_path / "geoblock-demo"  # the default OUTDIR
     # progress: six stages on standard error, each closed by its time
@@ -146,17 +146,17 @@ def test_demo_refuses_a_directory_that_is_not_a_demo_output(runner, cli, tmp_pat
     outdir.mkdir()
     (outdir / "thesis.docx").write_bytes(b"precious")
     (outdir / "report.md").write_text("# my own report\n")
-    result = runner.invoke(cli, ["demo", str(outdir), "--size", "tiny"])
-    assert result.exit_code == 2
+    result = runner.invoke(cli, ["demo", str(outdir), "--variant", "tiny"])
+    assert result.exit_code == 1
     message = " ".join(result.output.split())
-    assert str(outdir) in message and DEMO_MARKER in message and "--force" in message
+    assert str(outdir) in message and "--overwrite" in message
     assert sorted(p.name for p in outdir.iterdir()) == ["report.md", "thesis.docx"]
     assert (outdir / "report.md").read_text() == "# my own report\n"
     # a file in place of OUTDIR
     afile = tmp_path / "afile"
     afile.write_text("x")
-    result = runner.invoke(cli, ["demo", str(afile), "--size", "tiny"])
-    assert result.exit_code == 2 and "not a directory" in result.output
+    result = runner.invoke(cli, ["demo", str(afile), "--variant", "tiny"])
+    assert result.exit_code == 1 and "not a directory" in result.output
     assert afile.read_text() == "x"
 
 

@@ -53,7 +53,7 @@ def test_info_height_and_model_option(runner, cli, tmp_path):
     model = ConstantVelocityPushbroom.example()
     path = str(geoblock.write_model(model, tmp_path / "pushbroom.json"))
     result = runner.invoke(
-        cli, ["info", path, "--model", "synthetic-pushbroom", "--height", "0", "--json"]
+        cli, ["info", path, "--model-type", "synthetic-pushbroom", "--height", "0", "--json"]
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
@@ -63,7 +63,7 @@ def test_info_height_and_model_option(runner, cli, tmp_path):
     assert data["gsd"]["mean_m"] > 0
     assert [p["name"] for p in data["parameters"]] == list(model.parameters.names)
 
-    result = runner.invoke(cli, ["info", path, "--model", "no-such-model"])
+    result = runner.invoke(cli, ["info", path, "--model-type", "no-such-model"])
     assert result.exit_code == 1
     assert len(result.stderr.splitlines()) == 1
     assert "no-such-model" in result.stderr and "synthetic-affine" in result.stderr

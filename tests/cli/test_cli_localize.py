@@ -40,8 +40,8 @@ def test_localize_stdin_ray_tracing_and_warning(runner, cli, model_path, tmp_pat
                        crs="EPSG:4326", transform=Affine(1e-4, 0, 10.0, 0, -1e-4, 10.0)) as dst:
         dst.write(np.full((1, 10, 10), 100.0, "float32"))
     result = runner.invoke(
-        cli, ["localize", model_path, "--dem", str(dem), "--vertical", "ellipsoid",
-              "--method", "ray-tracing"],
+        cli, ["localize", model_path, "--dem", str(dem), "--dem-vertical", "ellipsoid",
+              "--intersection", "ray-tracing"],
         input="row,col\n1,2\n",
     )
     assert result.exit_code == 0, result.output
@@ -63,7 +63,8 @@ def test_localize_crop_offset_without_image(runner, cli, model_path, affine, tmp
     points = tmp_path / "image.csv"
     points.write_text("row,col\n10.5,20.25\n")
     out = tmp_path / "ground.csv"
-    args = ["localize", model_path, str(points), "--dem", "const:250", "-o", str(out)]
+    args = ["localize", model_path, str(points), "--dem", "const:250", "-o", str(out),
+            "--overwrite"]
     result = runner.invoke(cli, [*args, "--crop-offset", "100", "200"])
     assert result.exit_code == 0, result.output
     row = _read_csv(out.read_text())[0]

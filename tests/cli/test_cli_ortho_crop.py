@@ -202,7 +202,7 @@ def test_localize_points_of_the_crop(runner, cli, tmp_path, data_dir, crop):
     def run(*args):
         out = tmp_path / "ground.csv"
         result = runner.invoke(cli, ["localize", str(data_dir / GEOM), str(points), "--dem",
-                                     DEM, "-o", str(out), *args])
+                                     DEM, "-o", str(out), "--overwrite", *args])
         return result, out
 
     for args in (["--image", crop[0]], ["--crop-offset", "5000", "5000"]):

@@ -113,7 +113,7 @@ def test_refine_sigma_px_scales_sigma0(runner, cli, model_path, affine, tmp_path
 
     def sigma0(extra):
         result = runner.invoke(cli, ["refine", model_path, "--gcps", str(path),
-                                     "-o", str(tmp_path / "s.json"), *extra])
+                                     "-o", str(tmp_path / "s.json"), "--overwrite", *extra])
         assert result.exit_code == 0, result.output
         return float(result.stdout.split("sigma0 ")[1].split(",")[0])
 
@@ -201,7 +201,12 @@ def test_refine_write_checks_every_format_before_writing_anything(
     main, first = tmp_path / "main.json", tmp_path / "first.json"
     first.write_text("keep me\n")  # an existing destination is not touched either
     result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
-                                 "--write", f"json:{first}",
+                                 "--write", f"json:{first}"])
+    assert result.exit_code == 1 and "--overwrite" in result.stderr, result.output
+    assert "GCP" not in result.stdout  # refused before any work
+    assert not main.exists() and first.read_text() == "keep me\n"
+    result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(main),
+                                 "--write", f"json:{first}", "--overwrite",
                                  "--write", f"nitf:{tmp_path / 'x.ntf'}"])
     assert result.exit_code == 1, result.output
     assert "nitf" in result.stderr and str(tmp_path / "x.ntf") in result.stderr
@@ -218,7 +223,7 @@ def test_refine_same_output_twice_is_refused(runner, cli, model_path, points, tm
     out = tmp_path / "m.json"
     result = runner.invoke(cli, ["refine", model_path, "--gcps", points["gcps"], "-o", str(out),
                                  "--write", f"json:{out}"])
-    assert result.exit_code == 2 and "requested twice" in result.stderr and not out.exists()
+    assert result.exit_code == 1 and "is also written as" in result.stderr and not out.exists()
 
 
 def test_unknown_model_name_in_json_is_named_with_the_file(tmp_path, model_path, runner, cli):
@@ -267,8 +272,8 @@ def test_refine_reads_the_point_files_simulate_writes(runner, cli, simulated, tm
     ground, image = simulated / "points" / "ground.csv", simulated / "points" / "image.csv"
     onboard = simulated / "images" / "spot1a_onboard.json"
     out = tmp_path / "refined.json"
-    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
-                                 "--image", str(image), "--order", "1", "-o", str(out)])
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground-points", str(ground),
+                                 "--image-points", str(image), "--order", "1", "-o", str(out)])
     assert result.exit_code == 0, result.output
     n_gcp = sum(1 for line in ground.read_text().splitlines() if line.endswith(",gcp"))
     n_icp = sum(1 for line in ground.read_text().splitlines() if line.endswith(",icp"))
@@ -280,7 +285,7 @@ def test_refine_reads_the_point_files_simulate_writes(runner, cli, simulated, tm
     assert after < 0.5 * before, (before, after)
     # --image-id names the image explicitly: same result
     out2 = tmp_path / "refined2.json"
-    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground), "--image",
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground-points", str(ground), "--image-points",
                                  str(image), "--image-id", "spot1a", "-o", str(out2)])
     assert result.exit_code == 0, result.output
     assert json.loads(out2.read_text()) == json.loads(out.read_text())
@@ -293,26 +298,27 @@ def test_refine_image_file_with_several_images_needs_image_id(runner, cli, simul
     two = tmp_path / "image2.csv"
     two.write_text("\n".join([*lines, *(line.replace(",spot1a,", ",spot1b,")
                                         for line in lines[1:])]) + "\n")
-    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
-                                 "--image", str(two), "-o", str(tmp_path / "r.json")])
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground-points", str(ground),
+                                 "--image-points", str(two), "-o", str(tmp_path / "r.json")])
     assert result.exit_code == 2
     assert "spot1a, spot1b" in result.stderr and "--image-id" in result.stderr
     assert not (tmp_path / "r.json").exists()
-    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
-                                 "--image", str(two), "--image-id", "spot9"])
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground-points", str(ground),
+                                 "--image-points", str(two), "--image-id", "spot9"])
     assert result.exit_code == 2 and "'spot9'" in result.stderr and "spot1a, spot1b" in (
         result.stderr)
-    result = runner.invoke(cli, ["refine", str(onboard), "--ground", str(ground),
-                                 "--image", str(two), "--image-id", "spot1b",
+    result = runner.invoke(cli, ["refine", str(onboard), "--ground-points", str(ground),
+                                 "--image-points", str(two), "--image-id", "spot1b",
                                  "-o", str(tmp_path / "r.json")])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "r.json").is_file()
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--ground", "g.csv"], "--ground and --image go together"),
-    (["--image", "i.csv"], "--ground and --image go together"),
-    (["--ground", "g.csv", "--image", "i.csv", "--gcps", "x.csv"], "not several"),
+    (["--ground-points", "g.csv"], "--ground-points and --image-points go together"),
+    (["--image-points", "i.csv"], "--ground-points and --image-points go together"),
+    (["--ground", "g.csv"], "--ground-points and --image-points go together"),  # deprecated
+    (["--ground-points", "g.csv", "--image-points", "i.csv", "--gcps", "x.csv"], "not several"),
     (["--gcps", "x.csv", "--image-id", "a"], "--image-id selects"),
 ])
 def test_refine_block_file_usage_errors(runner, cli, model_path, args, message):

@@ -24,7 +24,7 @@ def test_help_lists_presets(runner, cli):
     result = runner.invoke(cli, ["simulate", "--help"])
     assert result.exit_code == 0
     for name in ("teo2010-spot5", "aguilar2007-quickbird", "chen1993-spot1a", "--variant",
-                 "--seed", "--no-images", "--force"):
+                 "--seed", "--no-images", "--overwrite"):
         assert name in result.output
     listed = runner.invoke(cli, ["simulate", "--list"])
     assert listed.exit_code == 0 and "aguilar2007-quickbird" in listed.output
@@ -40,9 +40,9 @@ def test_simulate_toml_with_progress(runner, cli, tmp_path):
     assert (out / "images" / "scene.tif").is_file()
     assert tomllib.loads((out / "scenario.toml").read_text())["seed"] == 5
     assert [im.id for im in read_block(out / "block.toml").images] == ["scene"]
-    # a non-empty OUTDIR is refused without --force
+    # a non-empty OUTDIR is refused without --overwrite (--force: its deprecated spelling)
     again = runner.invoke(cli, ["simulate", str(out / "scenario.toml"), str(out)])
-    assert again.exit_code == 2 and "not empty" in again.output and "--force" in again.output
+    assert again.exit_code == 1 and "not empty" in again.output and "--overwrite" in again.output
     forced = runner.invoke(cli, ["simulate", str(out / "scenario.toml"), str(out), "--force",
                                  "--no-images"])
     assert forced.exit_code == 0, forced.output

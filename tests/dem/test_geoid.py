@@ -7,6 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import rasterio
+from affine import Affine
+
+import geoblock
 
 from geoblock.dem import geoid as geoid_mod
 from geoblock.dem.geoid import Geoid, find_geoid
@@ -95,3 +99,26 @@ def test_bad_file(tmp_path):
     bad.write_bytes(b"not a grid")
     with pytest.raises(DemError, match="bad.gtx"):
         Geoid(bad)
+
+
+def test_not_found_hint_names_each_front_ends_setting(monkeypatch, tmp_path):
+    """The command line says --geoid, a block file its [dem] geoid key (issue 25, item 5)."""
+    from click.testing import CliRunner
+
+    from geoblock.cli.main import build_cli
+    from geoblock.errors import GeoidNotFoundError
+    from geoblock.io.blocks import BlockDem
+
+    monkeypatch.delenv("GEOBLOCK_GEOID", raising=False)
+    monkeypatch.setattr(geoid_mod, "geoid_search_path", lambda: [tmp_path / "nowhere"])
+    dem = tmp_path / "dem.tif"
+    with rasterio.open(dem, "w", driver="GTiff", width=4, height=4, count=1, dtype="float32",
+                       crs="EPSG:4326", transform=Affine(0.01, 0, 5, 0, -0.01, 44)) as ds:
+        ds.write(np.zeros((1, 4, 4), np.float32))
+    result = CliRunner().invoke(build_cli(), ["dem-info", str(dem), "--dem-vertical", "geoid"])
+    assert result.exit_code == 1 and "pass --geoid GTX" in result.output
+    assert "geoid=" not in result.output
+    with pytest.raises(GeoidNotFoundError, match=r'geoid = "path/to/egm96_15.gtx" in the \[dem\]'):
+        BlockDem(str(dem), vertical="geoid").to_source("b.toml")
+    with pytest.raises(GeoidNotFoundError, match="pass geoid="):
+        geoblock.open_dem(str(dem), vertical="geoid")

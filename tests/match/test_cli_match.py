@@ -44,8 +44,8 @@ def test_usage_errors(invoke, files):
     assert result.exit_code == 2 and "two or more IMAGEs" in result.output
     result = invoke(img, img, "--model", model, "--dem", "const:0")
     assert result.exit_code == 2 and "--model once per IMAGE" in result.output
-    result = invoke(img, img, "--id", "x", "--dem", "const:0")
-    assert result.exit_code == 2 and "--id once per IMAGE" in result.output
+    result = invoke(img, img, "--image-id", "x", "--dem", "const:0")
+    assert result.exit_code == 2 and "--image-id once per IMAGE" in result.output
     result = invoke("block.toml", "--model", model)
     assert result.exit_code == 2 and "not to a block file" in result.output
     result = invoke(img, img, "--ratio", "1.5", "--dem", "const:0")
@@ -59,7 +59,7 @@ def test_errors_are_one_line_naming_the_file(invoke, files, tmp_path):
     assert result.exit_code == 1
     assert "Error: duplicate image id(s) ['scene']" in result.output
     # a flat image: no keypoint where the two overlap
-    result = invoke(img, img, "--model", model, "--model", model, "--id", "a", "--id", "b",
+    result = invoke(img, img, "--model", model, "--model", model, "--image-id", "a", "--image-id", "b",
                     "--dem", "const:0")
     assert result.exit_code == 1
     assert f"Error: {img}: no SIFT keypoint" in result.output

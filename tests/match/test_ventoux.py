@@ -81,7 +81,7 @@ raster = "{f['right_image']}"
 correction = 0
 """)
     out = tmp_path / "adjusted"
-    result = runner.invoke(cli, ["adjust", str(tmp_path / "block.toml"), "--out", str(out),
+    result = runner.invoke(cli, ["adjust", str(tmp_path / "block.toml"), "-o", str(out),
                                  "--no-figures"])
     assert result.exit_code == 0, result.output
     report = json.loads((out / "report.json").read_text())

@@ -49,8 +49,8 @@ def mean(seed: dict, key: str) -> float:
 def test_help_lists_the_experiments_with_examples():
     result = CliRunner().invoke(build_cli(), ["experiment", "--help"])
     assert result.exit_code == 0, result.output
-    for name in ("teo2010", "chen2008", "chen1993", "aguilar2007", "--full", "--repeats",
-                 "--seed", "Examples:", "geoblock experiment teo2010"):
+    for name in ("teo2010", "chen2008", "chen1993", "aguilar2007", "--variant", "--repeats",
+                 "--seed", "--overwrite", "Examples:", "geoblock experiment teo2010"):
         assert name in result.output
 
 
@@ -65,8 +65,14 @@ def test_unknown_experiment_and_bad_options_are_one_line_errors(tmp_path):
     result = runner.invoke(cli, ["experiment", "teo2010", str(tmp_path / "taken")])
     assert result.exit_code == 1
     errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
-    assert errors == [f"Error: experiment teo2010: OUTDIR '{tmp_path / 'taken'}' exists and is "
+    assert errors == [f"Error: cannot write OUTDIR '{tmp_path / 'taken'}': it exists and is "
                       "not a directory"]
+    (tmp_path / "used").mkdir()
+    (tmp_path / "used" / "report.md").write_text("an earlier run's")
+    result = runner.invoke(cli, ["experiment", "teo2010", str(tmp_path / "used")])
+    assert result.exit_code == 1 and "--overwrite" in result.output
+    assert "seed" not in result.stderr  # refused before anything ran
+    assert (tmp_path / "used" / "report.md").read_text() == "an earlier run's"
 
 
 def test_teo2010_writes_the_report_results_and_figures(runs):

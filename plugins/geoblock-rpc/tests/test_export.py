@@ -407,8 +407,8 @@ def test_cli_usage_errors(run, tmp_path):
     result = run(model_json, tmp_path / "x.RPB", "--regularization", "-1")
     assert result.exit_code == 2 and "a number >= 0 or gcv" in result.stderr
     image = _blank_tif(tmp_path / "same.tif")
-    result = run(model_json, image, "--image", image)
-    assert result.exit_code == 2 and "never modified" in result.stderr
+    result = run(model_json, image, "--image", image, "--overwrite")
+    assert result.exit_code == 1 and "is also an input" in result.stderr
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".geoblock-stage")]
 
 

@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import click
 
+from geoblock.cli.options import check_outputs, deprecated_aliases, overwrite_opt
+
 __all__ = ["adjust"]
 
 
+@deprecated_aliases(out="--output")
 @click.command(short_help="Adjust a block of images (MBA, DG, RFM, RPCV-0/1) with GCPs, TPs, DEM.")
 @click.argument("block_file", metavar="BLOCK.toml", type=click.Path(dir_okay=False))
-@click.option("--out", "out_dir", metavar="DIR", default=None,
+@click.option("-o", "--output", "out_dir", metavar="DIR", default=None,
               help="Output directory (default: the block file's outputs.directory, else "
-              "'adjusted' beside it). Replaced as a whole when the adjustment succeeds; "
-              "left untouched when it fails.")
+              "'adjusted' beside it). An existing non-empty one is refused unless "
+              "--overwrite, and then replaced as a whole only when it holds nothing but a "
+              "previous adjustment's output; left untouched when the adjustment fails.")
 @click.option("--mode", type=click.Choice(["block", "single"]), default=None,
               help="block: all images with GCPs, TPs and DEM; single: each image alone with "
               "its GCPs. Default: the block file's (block).")
@@ -28,9 +32,10 @@ __all__ = ["adjust"]
 @click.option("--max-iterations", type=click.IntRange(min=1), default=None,
               help="Iteration cap of Gauss-Newton (default 30).")
 @click.option("--no-figures", is_flag=True, default=False, help="Do not draw the PNG figures.")
+@overwrite_opt
 def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_single: bool,
            dem_control: str | None, robust: str | None, collocation: bool | None,
-           max_iterations: int | None, no_figures: bool) -> None:
+           max_iterations: int | None, no_figures: bool, overwrite: bool) -> None:
     """Adjust the block described by BLOCK.toml and write the adjusted models and a report.
 
     The block file names the images (sensor-model files), the parameter set or image-space
@@ -49,16 +54,27 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
 
     \b
     Examples:
-      geoblock simulate teo2010-spot5 teo && geoblock adjust teo/block.toml --out teo/adj
+      geoblock simulate teo2010-spot5 teo && geoblock adjust teo/block.toml -o teo/adj
       geoblock adjust block.toml --robust cauchy --compare-single
     """
     from pathlib import Path
 
     from geoblock.adjust.block import adjust as run
     from geoblock.io.blocks import open_block
-    from geoblock.report.adjustment import write_result
+    from geoblock.report.adjustment import check_output_directory, write_result
 
-    opened = open_block(block_file)
+    from geoblock.io.blocks import read_block
+
+    spec = read_block(block_file)
+    out: str | Path
+    if out_dir is None:
+        out = spec.outputs.get("directory") or Path(block_file).resolve().parent / "adjusted"
+    else:
+        out = out_dir
+    check_outputs({"--output": out}, {"BLOCK.toml": block_file}, overwrite=overwrite,
+                  directories=["--output"])
+    check_output_directory(out)  # replaced as a whole: only a previous output may be there
+    opened = open_block(spec, name=block_file)
     options = dict(opened.options)
     for key, value in (("mode", mode), ("dem_control", dem_control), ("robust", robust),
                        ("collocation", collocation), ("max_iterations", max_iterations)):
@@ -72,12 +88,6 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
     single = None
     if compare_single and options.get("mode", "block") == "block":
         single = run(opened.block, progress=say, **{**options, "mode": "single"})
-    out: str | Path
-    if out_dir is None:
-        out = opened.spec.outputs.get("directory") or Path(block_file).resolve().parent / \
-            "adjusted"
-    else:
-        out = out_dir
     title = f"Block adjustment: {opened.spec.name or Path(block_file).name} " \
             f"(method {opened.spec.method})"
     written = write_result(result, out, single=single, title=title, figures=not no_figures)

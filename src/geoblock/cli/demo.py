@@ -4,22 +4,23 @@ from __future__ import annotations
 
 import click
 
+from geoblock.cli.options import check_outputs, deprecated_aliases, overwrite_opt
+
 __all__ = ["demo"]
 
 
+@deprecated_aliases(force="--overwrite", size="--variant")
 @click.command(short_help="The whole pipeline on a simulated block: adjust, orthorectify, "
                "mosaic, report.")
 @click.argument("outdir", metavar="[OUTDIR]", default="geoblock-demo", required=False)
-@click.option("--size", type=click.Choice(["small", "tiny"]), default="small",
+@click.option("--variant", "size", type=click.Choice(["small", "tiny"]), default="small",
               show_default=True,
               help="small: 600 x 600 px strips at 100 m (under half a minute on 2 cores); tiny: "
               "200 x 200 px strips at 300 m (a few seconds, for tests).")
 @click.option("--seed", type=click.IntRange(min=0), default=None, metavar="N",
               help="Seed of every random draw (default: the preset's).")
-@click.option("--force", is_flag=True, default=False,
-              help="Write into a non-empty OUTDIR that is not a previous demo's output (files "
-              "of the same name are replaced; the directory is not marked as a demo output).")
-def demo(outdir: str, size: str, seed: int | None, force: bool) -> None:
+@overwrite_opt
+def demo(outdir: str, size: str, seed: int | None, overwrite: bool) -> None:
     """geoblock's whole pipeline on built-in data, before and after the block adjustment.
 
     Simulates a small block like Teo et al.'s (the teo2010-spot5 preset, small variant: three
@@ -35,30 +36,24 @@ def demo(outdir: str, size: str, seed: int | None, force: bool) -> None:
     two mosaics), OUTDIR/errors.png and OUTDIR/seams.png. Progress goes to standard error,
     stage by stage. OUTDIR defaults to ./geoblock-demo.
 
-    Re-running is safe: the demo writes a marker file, OUTDIR/.geoblock-demo, and a later
-    demo into a directory holding it replaces the previous demo's outputs (block/,
+    A non-empty OUTDIR is refused before anything is done unless --overwrite. With it, a
+    previous demo's output (marked by OUTDIR/.geoblock-demo) is replaced (block/,
     adjustment/, onboard/, orthos/, mosaic.tif, contribution.tif, report.md, results.json
-    and the PNGs; other files are kept). A non-empty OUTDIR without the marker is refused
-    (exit code 2) unless --force.
+    and the PNGs; other files are kept), and any other directory is written into (files of
+    the same name are replaced; it is not marked as a demo output).
 
     \b
     Examples:
       geoblock demo
-      geoblock demo /tmp/demo --size tiny
-      geoblock demo /tmp/demo --force
+      geoblock demo /tmp/demo --variant tiny
+      geoblock demo /tmp/demo --overwrite
     """
     from pathlib import Path
 
-    from geoblock.errors import DemoOutdirError
     from geoblock.workflows.demo import run_demo
 
-    path = Path(outdir)
-    try:
-        result = run_demo(path, size=size, seed=seed, force=force,
-                          progress=lambda m: click.echo(m, err=True))
-    except DemoOutdirError as exc:  # raised before anything is written
-        hint = "" if exc.path.exists() and not exc.path.is_dir() else (
-            "; or pass --force to write into it (files of the same name are replaced)")
-        raise click.UsageError(f"{exc}{hint}") from None
+    check_outputs({"OUTDIR": outdir}, overwrite=overwrite, directories=["OUTDIR"])
+    result = run_demo(Path(outdir), size=size, seed=seed, force=overwrite,
+                      progress=lambda m: click.echo(m, err=True))
     click.echo(f"report: {result.report}")
     click.echo(f"quicklook: {result.quicklook}")

@@ -8,7 +8,13 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from geoblock.cli.options import json_opt, model_arg, model_name_opt, open_model_arg
+from geoblock.cli.options import (
+    deprecated_aliases,
+    json_opt,
+    model_arg,
+    model_type_opt,
+    open_model_arg,
+)
 
 if TYPE_CHECKING:
     from geoblock.models.protocol import SensorModel
@@ -157,9 +163,10 @@ def format_info(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+@deprecated_aliases(model="--model-type")
 @click.command(short_help="Describe a sensor model: size, parameters, footprint, GSD.")
 @model_arg
-@model_name_opt
+@model_type_opt
 @click.option(
     "--height",
     "height",
@@ -181,7 +188,7 @@ def info(model_path: str, model_name: str | None, height: float | None, as_json:
     \b
     Examples:
       geoblock info scene.json
-      geoblock info DIM_SPOT6_P_XXXX.XML --model rpc --json
+      geoblock info DIM_SPOT6_P_XXXX.XML --model-type rpc --json
     """
     model = open_model_arg(model_path, model_name)
     data = {"path": model_path, **model_info(model, height)}

@@ -8,15 +8,22 @@ from typing import TYPE_CHECKING
 import click
 
 from geoblock.cli.options import (
+    check_outputs,
     crop_offset_opt,
+    dem_options,
+    force_opt,
+    deprecated_aliases,
     model_arg,
     model_for_image_arg,
-    model_name_opt,
+    model_type_opt,
     no_crop_opt,
+    open_dem_arg,
     open_model_arg,
     output_opt,
+    overwrite_opt,
     points_arg,
     points_source,
+    positive_float,
 )
 
 if TYPE_CHECKING:
@@ -24,15 +31,6 @@ if TYPE_CHECKING:
     from geoblock.models.protocol import SensorModel
 
 __all__ = ["localize"]
-
-
-def _nodata(value: str) -> str | float:
-    if value.lower() in ("nan", "fill", "nearest"):
-        return value.lower()
-    try:
-        return float(value)
-    except ValueError:
-        return value
 
 
 def _crop_to_scene_edge(model: SensorModel, crop_offset: tuple[float, float]) -> CroppedModel:
@@ -56,38 +54,35 @@ def _crop_to_scene_edge(model: SensorModel, crop_offset: tuple[float, float]) ->
         ) from exc
 
 
+@deprecated_aliases(model="--model-type", vertical="--dem-vertical", nodata="--dem-voids",
+                    interpolation="--dem-interpolation", method="--intersection",
+                    tolerance="--intersection-tolerance")
 @click.command(short_help="Image points (row, col) -> ground (lon, lat, h) on a DEM.")
 @model_arg
 @points_arg
-@click.option("--dem", "dem_source", metavar="DEM", required=True,
-              help="DEM file (GeoTIFF, SRTM .hgt, VRT, ...) or 'const:H' (metres).")
-@click.option("--vertical", type=click.Choice(["geoid", "ellipsoid"]), default=None,
-              help="Vertical datum of the DEM heights; default: as the file states it.")
-@click.option("--geoid", metavar="GTX", default=None,
-              help="Geoid grid (.gtx) for geoid heights; default GEOBLOCK_GEOID or PROJ's "
-              "egm96_15.gtx.")
-@click.option("--nodata", default="nan", show_default=True, metavar="nan|fill|nearest|H",
-              help="DEM voids: NaN (status no_dem), filled from neighbours, or a height.")
-@click.option("--interpolation", type=click.Choice(["bilinear", "nearest", "bicubic"]),
-              default="bilinear", show_default=True, help="DEM sampling.")
-@click.option("--method", type=click.Choice(["robust", "ray-tracing"]), default="robust",
-              show_default=True, help="Intersection method.")
-@click.option("--tolerance", type=float, default=1e-3, show_default=True, metavar="M",
-              help="Tolerance, metres.")
-@click.option("--fill-height", type=float, default=None, metavar="H",
-              help="Ellipsoidal height used where the DEM has none (outside it, voids).")
+@dem_options(voids=True)
+@click.option("--intersection", type=click.Choice(["robust", "ray-tracing"]), default="robust",
+              show_default=True,
+              help="Ray/DEM intersection method: robust (the first intersection from the "
+              "sensor, bracketed by a scan of the line of sight, then refined) or ray-tracing "
+              "(the papers' fixed-point iteration Z -> XY -> Z').")
+@click.option("--intersection-tolerance", type=float, default=1e-3, show_default=True,
+              metavar="M", callback=positive_float,
+              help="Convergence tolerance of the intersection, metres.")
 @click.option("--image", "image", metavar="IMAGE", default=None,
               help="The raster the points were measured on: its shape is checked against "
               "MODEL's and its pixel-unit geotransform, if any, gives the crop offset.")
 @crop_offset_opt
 @no_crop_opt
+@force_opt
 @output_opt
-@model_name_opt
-def localize(model_path: str, points: str, dem_source: str, vertical: str | None,
-             geoid: str | None, nodata: str, interpolation: str, method: str, tolerance: float,
-             fill_height: float | None, image: str | None,
-             crop_offset: tuple[float, float] | None, no_crop: bool, output: str,
-             model_name: str | None) -> None:
+@overwrite_opt
+@model_type_opt
+def localize(model_path: str, points: str, dem_source: str, dem_vertical: str | None,
+             geoid: str | None, dem_voids: str | float | None, fill_height: float | None,
+             dem_interpolation: str, intersection: str, intersection_tolerance: float,
+             image: str | None, crop_offset: tuple[float, float] | None, no_crop: bool,
+             force: bool, output: str, overwrite: bool, model_name: str | None) -> None:
     """Intersect the lines of sight of image points of MODEL with the terrain of DEM.
 
     POINTS is a CSV file with a header line holding at least the columns row, col (pixels;
@@ -105,26 +100,31 @@ def localize(model_path: str, points: str, dem_source: str, vertical: str | None
     \b
     Examples:
       geoblock localize scene.json --dem N44E005.hgt measures.csv -o ground.csv
+      geoblock localize scene.json --dem dem.tif --dem-vertical geoid --dem-voids fill \\
+          --fill-height 250 measures.csv -o ground.csv
       printf 'row,col\\n0,0\\n' | geoblock localize scene.json --dem const:100
     """
     from geoblock._array import warn_status
     from geoblock.cli.project import status_names
     from geoblock.dem.intersect import localize as _localize
-    from geoblock.io import open_dem, read_points, write_points
+    from geoblock.io import read_points, write_points
 
     if no_crop and image is None:
         raise click.UsageError("--no-crop needs --image IMAGE (it says to take IMAGE's pixels "
                                "as MODEL's); without --image the points are MODEL's pixels")
+    check_outputs({"--output": output}, {"POINTS": points, "MODEL": model_path, "--image": image},
+                  overwrite=overwrite)
     model = open_model_arg(model_path, model_name)
     if image is not None:  # also refuses --crop-offset with --no-crop
-        model = model_for_image_arg(model, image, crop_offset, no_crop)
+        model = model_for_image_arg(model, image, crop_offset, no_crop, force)
     elif crop_offset:
         model = _crop_to_scene_edge(model, crop_offset)
-    dem = open_dem(dem_source, vertical=vertical, geoid=geoid, nodata=_nodata(nodata),
-                   interpolation=interpolation)
+    dem = open_dem_arg(dem_source, dem_vertical, geoid, voids=dem_voids,
+                       interpolation=dem_interpolation)
     table = read_points(points_source(points), required=("row", "col"))
-    ground, status = _localize(model, table["row"], table["col"], dem, method=method,
-                               tolerance_m=tolerance, fill_height=fill_height, warn=False)
+    ground, status = _localize(model, table["row"], table["col"], dem, method=intersection,
+                               tolerance_m=intersection_tolerance, fill_height=fill_height,
+                               warn=False)
     warn_status(status, f"localize with {model.name!r}", stacklevel=2)
     out = dict(table)
     for name in ("lon", "lat", "h"):

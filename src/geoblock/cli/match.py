@@ -6,10 +6,19 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from geoblock.cli.options import no_crop_opt, output_opt, positive_float
+from geoblock.cli.options import (
+    check_outputs,
+    dem_options,
+    force_opt,
+    deprecated_aliases,
+    no_crop_opt,
+    open_dem_arg,
+    output_opt,
+    overwrite_opt,
+    positive_float,
+)
 
 if TYPE_CHECKING:
-    from geoblock.dem.protocol import DemSource
     from geoblock.match.pipeline import MatchImage
 
 __all__ = ["match"]
@@ -22,28 +31,24 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
     return value
 
 
+@deprecated_aliases(id="--image-id", sigma="--sigma-px")
 @click.command(short_help="Tie points between images, guided by their sensor models (SIFT).")
 @click.argument("inputs", metavar="IMAGE IMAGE... | BLOCK.toml", nargs=-1, required=True)
 @output_opt
 @click.option("--model", "models", metavar="MODEL_FILE", multiple=True,
               help="Sensor-model file of an IMAGE, once per IMAGE in the same order; default: "
               "the model stored in each IMAGE (e.g. its GeoTIFF RPC tags).")
-@click.option("--id", "ids", metavar="NAME", multiple=True,
+@click.option("--image-id", "ids", metavar="ID", multiple=True,
               help="Image id written in the 'image' column, once per IMAGE in the same "
               "order; default the file names without extension (a block file's ids).")
-@click.option("--dem", "dem_source", metavar="DEM", default=None,
-              help="DEM file (GeoTIFF, SRTM .hgt, VRT, ...) or 'const:H' (metres); required "
-              "with IMAGEs, default the block file's [dem].")
-@click.option("--dem-vertical", type=click.Choice(["geoid", "ellipsoid"]), default=None,
-              help="Vertical datum of the DEM heights; default: as the file states it.")
-@click.option("--geoid", metavar="GTX", default=None,
-              help="Geoid grid (.gtx) for geoid heights; default GEOBLOCK_GEOID or PROJ's "
-              "egm96_15.gtx.")
+@dem_options(required=False, required_help=" Required with IMAGEs; default the block file's "
+             "[dem].")
 @click.option("--dem-sigma", type=float, metavar="M", default=None, callback=positive_float,
               help="Accuracy of the DEM's heights (1 sigma, metres): the first pass looks "
               "three times its height parallax along the epipolar direction. Default the "
               "block file's dem.sigma, else 10.")
 @no_crop_opt
+@force_opt
 @click.option("--search", "search_px", type=float, metavar="PX", default=None,
               callback=positive_float,
               help="How far the models may disagree, pixels: radius of the first pass' "
@@ -62,7 +67,7 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
 @click.option("-k", "k_sigma", type=float, default=3.0, show_default=True, metavar="K",
               callback=positive_float,
               help="Rejection threshold of the epipolar and height tests, robust sigmas.")
-@click.option("--sigma", "sigma_px", type=float, metavar="PX", default=None,
+@click.option("--sigma-px", "sigma_px", type=float, metavar="PX", default=None,
               callback=positive_float,
               help="The sigma column written, pixels; default estimated per pair from the "
               "matches' scatter across the epipolar direction.")
@@ -78,12 +83,13 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               help="Also write every candidate match: positions, the models' prediction, "
               "offset, ratio, correlation, residuals across/along the epipolar direction and "
               "status (kept or the test that rejected it).")
+@overwrite_opt
 def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tuple[str, ...],
           dem_source: str | None, dem_vertical: str | None, geoid: str | None,
-          dem_sigma: float | None, no_crop: bool,
+          dem_sigma: float | None, no_crop: bool, force: bool,
           search_px: float | None, max_keypoints: int, contrast_threshold: float, ratio: float,
           min_score: float, order: int, k_sigma: float, sigma_px: float | None,
-          ictp_share: float, id_prefix: str, diagnostics: str | None) -> None:
+          ictp_share: float, id_prefix: str, diagnostics: str | None, overwrite: bool) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
     image-measurement CSV 'geoblock adjust' reads: id, image, row, col, sigma, kind (tp).
 
@@ -121,6 +127,9 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         click.echo(message, err=True)
 
     block_mode = len(inputs) == 1 and Path(inputs[0]).suffix.lower() == ".toml"
+    check_outputs({"--output": output, "--diagnostics": diagnostics},
+                  {"IMAGE" if not block_mode else "BLOCK.toml": inputs, "--model": models,
+                   "--dem": dem_source}, overwrite=overwrite)
     options: dict[str, Any] = {
         "search_px": search_px, "max_keypoints": max_keypoints,
         "contrast_threshold": contrast_threshold, "ratio": ratio, "min_score": min_score,
@@ -129,11 +138,12 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         options["dem_sigma_m"] = dem_sigma
     opts = MatchOptions(**options)
     if block_mode:
-        for name, given in (("--model", models), ("--id", ids), ("--no-crop", no_crop)):
+        for name, given in (("--model", models), ("--image-id", ids), ("--no-crop", no_crop),
+                            ("--force", force)):
             if given:
                 raise click.UsageError(f"{name} applies to IMAGEs, not to a block file (the "
                                        "block file names each image's model and raster)")
-        dem = _open_dem(dem_source, dem_vertical, geoid) if dem_source else None
+        dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else None
         result = match_block(inputs[0], dem=dem, options=opts, progress=say)
     else:
         if len(inputs) < 2:
@@ -141,37 +151,33 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         if dem_source is None:
             raise click.UsageError("--dem DEM is required with IMAGEs (the terrain the models "
                                    "predict the matches through)")
-        images = _images(inputs, models, ids, no_crop)
-        result = match_images(images, _open_dem(dem_source, dem_vertical, geoid),
+        images = _images(inputs, models, ids, no_crop, force)
+        result = match_images(images, open_dem_arg(dem_source, dem_vertical, geoid),
                               options=opts, progress=say)
     _write(result, output, diagnostics, ictp_share)
     say(result.summary())
 
 
-def _open_dem(source: str, vertical: str | None, geoid: str | None) -> DemSource:
-    from geoblock.io.dem import open_dem
-
-    return open_dem(source, vertical=vertical, geoid=geoid)
-
-
 def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...],
-            no_crop: bool) -> list[MatchImage]:
+            no_crop: bool, force: bool) -> list[MatchImage]:
     """The IMAGEs with their models (``--model`` in order, else the one stored in each)."""
     from pathlib import Path
 
     from geoblock.match.pipeline import MatchImage
+    from geoblock.models.crop import CLI_NAMES
 
     if models and len(models) != len(paths):
         raise click.UsageError(f"give --model once per IMAGE ({len(paths)}), or not at all; "
                                f"got {len(models)}")
     if ids and len(ids) != len(paths):
-        raise click.UsageError(f"give --id once per IMAGE ({len(paths)}), or not at all; got "
+        raise click.UsageError(f"give --image-id once per IMAGE ({len(paths)}), or not at all; got "
                                f"{len(ids)}")
     names = list(ids) if ids else [Path(p).stem for p in paths]
     out = []
     for k, path in enumerate(paths):
         model = models[k] if models else None
-        out.append(MatchImage.from_files(names[k], path, model, crop=not no_crop))
+        out.append(MatchImage.from_files(names[k], path, model, crop=not no_crop, force=force,
+                                         names=CLI_NAMES))
         image = out[-1]
         if image.offset != (0.0, 0.0):
             rows, cols = image.image.shape

@@ -6,7 +6,13 @@ from typing import Any
 
 import click
 
-from geoblock.cli.options import write_options
+from geoblock.cli.options import (
+    check_outputs,
+    overwrite_opt,
+    scheduler_opt,
+    using_scheduler,
+    write_options,
+)
 
 __all__ = ["mosaic"]
 
@@ -30,16 +36,16 @@ __all__ = ["mosaic"]
 @click.option("--allow-empty", is_flag=True, default=False,
               help="Write OUT with a warning when no pixel is valid; by default that is an "
               "error and nothing is written.")
-@click.option("--scheduler", type=click.Choice(["threads", "processes", "synchronous"]),
-              default="threads", show_default=True, help="dask scheduler.")
+@scheduler_opt
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @write_options
+@overwrite_opt
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
 def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
            contribution_path: str | None, nodata: float | None, chunks: int, allow_empty: bool,
            scheduler: str, cog: bool, compress: str, level: int | None,
-           creation_options: dict[str, str], progress: bool) -> None:
+           creation_options: dict[str, str], overwrite: bool, progress: bool) -> None:
     """Mosaic the ORTHO GeoTIFFs (in priority order) onto their union grid and write OUT.
 
     The orthos must share CRS, resolution and pixel phase (nothing is reprojected or
@@ -47,6 +53,9 @@ def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
     same --crs and --res) gives such orthos for images of one sensor. With --method priority
     the first ORTHO with a valid pixel wins; with --method feather overlaps are blended, each
     ortho weighted by the distance (pixels, capped at --feather) to its nearest nodata pixel.
+    OUT comes first (gdal_merge's -o, not gdalwarp's last argument): an OUT that is also an
+    ORTHO is refused, and so is an OUT (or CONTRIB.tif) that exists, unless --overwrite, and an
+    ORTHO that does not exist (named, with a reminder of the order when it is the last one).
     OUT (and CONTRIB.tif) are written under a temporary name and renamed at the end: a failed
     run, or one without any valid pixel (unless --allow-empty), leaves nothing there.
 
@@ -56,21 +65,54 @@ def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
       geoblock mosaic mosaic.tif a.tif b.tif --method feather --feather 64 \\
           --contribution contrib.tif
     """
+    from geoblock.errors import OutputExistsError
     from geoblock.io.images import write_ortho
     from geoblock.ortho.mosaic import mosaic as make_mosaic
     from geoblock.ortho.mosaic import open_ortho
 
+    _check_orthos(output, orthos)
+    try:
+        check_outputs({"OUT": output, "--contribution": contribution_path}, {"ORTHO": orthos},
+                      overwrite=overwrite)
+    except OutputExistsError as exc:  # OUT given last, the gdalwarp habit, is a likely cause
+        if str(exc).startswith("OUT "):
+            raise OutputExistsError(f"{exc}; note that geoblock mosaic takes OUT first, as in "
+                                    f"'geoblock mosaic OUT {' '.join(orthos)}'") from None
+        raise
     sources = [open_ortho(path, chunks=chunks) for path in orthos]
     result = make_mosaic(sources, method=method, feather_px=feather_px, nodata=nodata,
                          chunks=chunks)
     write: dict[str, Any] = {
-        "driver": "COG" if cog else "GTiff", "scheduler": scheduler, "progress": progress,
+        "driver": "COG" if cog else "GTiff", "progress": progress,
         "compress": compress, "level": level, **creation_options}
     empty = "warn" if allow_empty else "error"
-    write_ortho(result["mosaic"], output, empty=empty, **write)
-    if contribution_path is not None:  # all 0 exactly when the mosaic is empty
-        write_ortho(result["contribution"].expand_dims(band=[1]), contribution_path,
-                    empty="ignore", **write)
+    with using_scheduler(scheduler) as where:
+        write_ortho(result["mosaic"], output, empty=empty, scheduler=where, **write)
+        if contribution_path is not None:  # all 0 exactly when the mosaic is empty
+            write_ortho(result["contribution"].expand_dims(band=[1]), contribution_path,
+                        empty="ignore", scheduler=where, **write)
     rows, cols = result.sizes["y"], result.sizes["x"]
     click.echo(f"{output}: {rows} x {cols} px, {result.sizes['band']} band(s) from "
                f"{len(orthos)} orthos ({method})", err=True)
+
+
+def _check_orthos(output: str, orthos: tuple[str, ...]) -> None:
+    """Every ORTHO exists (GDAL virtual paths are left to the reader); a missing last one is
+    most likely an OUT given last, the gdalwarp habit: say that OUT comes first."""
+    import os
+
+    from geoblock.errors import GeoblockIOError
+    from geoblock.io.outputs import is_virtual
+
+    out = os.path.abspath(output)  # OUT among the ORTHOs: check_outputs names it
+    missing = [p for p in orthos if not is_virtual(p) and not os.path.exists(p)
+               and os.path.abspath(p) != out]
+    if not missing:
+        return
+    if missing == [orthos[-1]]:
+        order = " ".join([orthos[-1], output, *orthos[:-1]])
+        raise GeoblockIOError(
+            f"ORTHO {orthos[-1]!r} does not exist. If it is the output: geoblock mosaic takes "
+            f"OUT first, as in 'geoblock mosaic {order}'")
+    raise GeoblockIOError(f"ORTHO {missing[0]!r} does not exist"
+                          + (f" (nor {len(missing) - 1} more)" if len(missing) > 1 else ""))

@@ -8,12 +8,19 @@ import click
 
 from geoblock.cli.options import (
     bounds_value,
+    check_outputs,
     crop_offset_opt,
     crs_value,
+    dem_options,
+    force_opt,
     model_for_image_arg,
     no_crop_opt,
     nonnegative_float,
+    open_dem_arg,
+    overwrite_opt,
     positive_float,
+    scheduler_opt,
+    using_scheduler,
     write_options,
 )
 from geoblock.ortho.limits import MAX_PIXELS
@@ -31,18 +38,13 @@ __all__ = ["ortho"]
 @click.command(short_help="Orthorectify an image with its sensor model and a DEM.")
 @click.argument("image", metavar="IMAGE")
 @click.argument("output", metavar="OUT")
-@click.option("--dem", "dem_source", metavar="DEM", required=True,
-              help="DEM file (GeoTIFF, SRTM .hgt, VRT, ...) or 'const:H' (metres).")
-@click.option("--dem-vertical", type=click.Choice(["geoid", "ellipsoid"]), default=None,
-              help="Vertical datum of the DEM heights; default: as the file states it.")
-@click.option("--geoid", metavar="GTX", default=None,
-              help="Geoid grid (.gtx) for geoid heights; default GEOBLOCK_GEOID or PROJ's "
-              "egm96_15.gtx.")
+@dem_options(voids=True)
 @click.option("--model", "model_file", metavar="MODEL_FILE", default=None,
               help="Sensor-model file (RPB, _RPC.TXT, DIMAP, model JSON, ...); default: the "
               "model stored in IMAGE (e.g. its GeoTIFF RPC tags).")
 @crop_offset_opt
 @no_crop_opt
+@force_opt
 @click.option("--crs", metavar="CRS", default=None, callback=crs_value,
               help="Output CRS (EPSG:32631, WKT, PROJ string); default the scene's UTM zone.")
 @click.option("--res", "resolution", type=float, metavar="METRES", default=None,
@@ -68,21 +70,21 @@ __all__ = ["ortho"]
               help="Write OUT with a warning when no pixel is valid (DEM not covering the "
               "scene, --bounds missing the footprint); by default that is an error and "
               "nothing is written.")
-@click.option("--scheduler", default="threads", show_default=True,
-              metavar="threads|processes|ADDRESS",
-              help="dask scheduler: local threads, local processes, or the address of a "
-              "dask.distributed scheduler (tcp://host:8786).")
+@scheduler_opt
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @write_options
+@overwrite_opt
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar.")
 def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, geoid: str | None,
+          dem_voids: str | float | None, fill_height: float | None, dem_interpolation: str,
           model_file: str | None, crop_offset: tuple[float, float] | None, no_crop: bool,
+          force: bool,
           crs: pyproj.CRS | None, resolution: float | None,
           bounds: tuple[float, float, float, float] | None,
           resampling: str, tolerance: float, chunks: int, max_pixels: int, allow_empty: bool,
           scheduler: str, cog: bool, compress: str, level: int | None,
-          creation_options: dict[str, str], progress: bool) -> None:
+          creation_options: dict[str, str], overwrite: bool, progress: bool) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
 
     Every output pixel centre goes to the ground, takes its height from DEM (ellipsoidal;
@@ -93,9 +95,13 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     zone, its GSD rounded to 1, 2, 2.5 or 5 x 10^k, aligned to multiples of it) is the same
     for every image of one sensor, so their orthos mosaic together. Impossible grids (more
     than --max-pixels, fewer than 2 x 2 pixels, pixels over 1 degree) are refused before
-    anything is computed. OUT is written under a temporary name and renamed at the end: a
-    failed run leaves nothing under OUT, and a run that produced no valid pixel fails
-    (unless --allow-empty).
+    anything is computed, and so is an OUT that exists (unless --overwrite) or is IMAGE. OUT
+    is written under a temporary name and renamed at the end: a failed run leaves nothing
+    under OUT, and a run that produced no valid pixel fails (unless --allow-empty).
+
+    Where the DEM has no height (voids inside it, or outside its coverage) the output pixel
+    is nodata, unless --dem-voids fills the voids from the surrounding posts or
+    --fill-height gives a height for every such place (GDAL's RPC_DEM_MISSING_VALUE).
 
     IMAGE may be a crop of the model's scene (vendor metadata describe the full scene): the
     crop offset is applied when IMAGE states it with a pixel-unit geotransform (no CRS,
@@ -110,16 +116,20 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
           --crs EPSG:32632 --res 0.5 --resampling bicubic --scheduler processes
     """
     from geoblock.errors import EmptyOutputError
-    from geoblock.io import open_dem, open_model
+    from geoblock.io import open_model
     from geoblock.io.images import open_image, write_ortho
     from geoblock.ortho import OutputGrid, ortho_job
+    from geoblock.ortho.grid import check_oversampling
 
+    check_outputs({"OUT": output}, {"IMAGE": image, "--model": model_file, "--dem": dem_source},
+                  overwrite=overwrite)
     model = open_model(model_file if model_file is not None else image)
     source = open_image(image)
     # a crop of the model's scene: shifted, or refused when nothing says where it lies (also
     # refuses --crop-offset with --no-crop)
-    model = model_for_image_arg(model, source, crop_offset, no_crop)
-    dem = open_dem(dem_source, vertical=dem_vertical, geoid=geoid)
+    model = model_for_image_arg(model, source, crop_offset, no_crop, force)
+    dem = open_dem_arg(dem_source, dem_vertical, geoid, voids=dem_voids,
+                       fill_height=fill_height, interpolation=dem_interpolation)
     if bounds and resolution is not None and crs is not None:
         grid = OutputGrid.from_bounds(crs, bounds, resolution)  # gdalwarp -te/-tr
     else:
@@ -128,6 +138,8 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
                                     align=not bounds, max_pixels=None)
     names = {"resolution": "--res", "bounds": "--bounds", "max_pixels": "--max-pixels"}
     grid.check(max_pixels=max_pixels, names=names)  # before the graph: 10^20 pixels is no job
+    if resolution is not None:  # a likely typo: far finer than the image's GSD
+        check_oversampling(grid, model, dem, names=names)
     # the model is reconciled with the image already (crop offset applied, or --no-crop)
     data = ortho_job(source, model, dem, grid, kernel=resampling, tolerance_px=tolerance,
                      chunks=chunks, crop=False)
@@ -135,13 +147,8 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
         "driver": "COG" if cog else "GTiff", "progress": progress, "compress": compress,
         "level": level, "empty": "warn" if allow_empty else "error", **creation_options}
     try:
-        if scheduler in ("threads", "processes", "synchronous"):
-            write_ortho(data, output, scheduler=scheduler, **write)
-        else:
-            from distributed import Client
-
-            with Client(scheduler) as client:
-                write_ortho(data, output, scheduler=client, **write)
+        with using_scheduler(scheduler) as where:
+            write_ortho(data, output, scheduler=where, **write)
     except EmptyOutputError as exc:
         raise EmptyOutputError(f"{exc}: {_why_empty(model, dem, grid, bool(bounds))}; "
                                "pass --allow-empty to write it anyway") from exc
@@ -175,7 +182,7 @@ def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_give
                     f"{x.max():.10g}, {y.max():.10g}) in {grid.crs.name}")
         gap = coverage_gap(dem, model)
         if gap is not None:
-            return gap
+            return f"{gap} (--fill-height H gives a height wherever the DEM has none)"
     except Exception:  # the diagnosis must not hide the error itself
         pass
     return ("check that the DEM covers the scene, that --bounds overlap the footprint and "

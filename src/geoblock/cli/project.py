@@ -14,10 +14,13 @@ from typing import TYPE_CHECKING
 import click
 
 from geoblock.cli.options import (
+    check_outputs,
+    deprecated_aliases,
     model_arg,
-    model_name_opt,
+    model_type_opt,
     open_model_arg,
     output_opt,
+    overwrite_opt,
     points_arg,
     points_source,
 )
@@ -41,12 +44,14 @@ def status_names(status: np.ndarray) -> np.ndarray:
     return np.where(status < names.size, known, status.astype(str))
 
 
-def _run(model_path: str, model_name: str | None, points: str, output: str,
+def _run(model_path: str, model_name: str | None, points: str, output: str, overwrite: bool,
          inputs: tuple[str, str, str], outputs: tuple[str, ...], method: str, what: str,
          ) -> None:
     from geoblock._array import warn_status
     from geoblock.io import read_points, write_points
 
+    check_outputs({"--output": output}, {"POINTS": points, "MODEL": model_path},
+                  overwrite=overwrite)
     model = open_model_arg(model_path, model_name)
     table = read_points(points_source(points), required=inputs)
     coords, status = getattr(model, method)(*(table[c] for c in inputs))
@@ -58,12 +63,15 @@ def _run(model_path: str, model_name: str | None, points: str, output: str,
     write_points(output, out)
 
 
+@deprecated_aliases(model="--model-type")
 @click.command(short_help="Ground points (lon, lat, h) -> image (row, col).")
 @model_arg
 @points_arg
 @output_opt
-@model_name_opt
-def project(model_path: str, points: str, output: str, model_name: str | None) -> None:
+@overwrite_opt
+@model_type_opt
+def project(model_path: str, points: str, output: str, overwrite: bool,
+            model_name: str | None) -> None:
     """Project ground points into the image of MODEL.
 
     POINTS is a CSV file with a header line holding at least the columns lon, lat (degrees,
@@ -79,18 +87,21 @@ def project(model_path: str, points: str, output: str, model_name: str | None) -
       cat gcps.csv | geoblock project scene.json > gcps_image.csv
     """
     _run(
-        model_path, model_name, points, output,
+        model_path, model_name, points, output, overwrite,
         inputs=("lon", "lat", "h"), outputs=("row", "col"),
         method="project_with_status", what="project",
     )
 
 
+@deprecated_aliases(model="--model-type")
 @click.command(short_help="Image points (row, col) at height h -> ground (lon, lat).")
 @model_arg
 @points_arg
 @output_opt
-@model_name_opt
-def backproject(model_path: str, points: str, output: str, model_name: str | None) -> None:
+@overwrite_opt
+@model_type_opt
+def backproject(model_path: str, points: str, output: str, overwrite: bool,
+                model_name: str | None) -> None:
     """Backproject image points of MODEL onto the surface at ellipsoidal height h.
 
     POINTS is a CSV file with a header line holding at least the columns row, col (pixels;
@@ -105,7 +116,7 @@ def backproject(model_path: str, points: str, output: str, model_name: str | Non
       printf 'row,col,h\\n0,0,100\\n' | geoblock backproject scene.json
     """
     _run(
-        model_path, model_name, points, output,
+        model_path, model_name, points, output, overwrite,
         inputs=("row", "col", "h"), outputs=("lon", "lat"),
         method="backproject_with_status", what="backproject",
     )

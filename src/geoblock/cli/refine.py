@@ -16,7 +16,15 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from geoblock.cli.options import model_arg, model_name_opt, open_model_arg
+from geoblock.cli.options import (
+    check_outputs,
+    deprecated_aliases,
+    model_arg,
+    model_type_opt,
+    open_model_arg,
+    overwrite_opt,
+    positive_float,
+)
 
 if TYPE_CHECKING:
     from geoblock.adjust import ControlPoints, ResectionResult
@@ -168,6 +176,7 @@ def _stats_table(result: ResectionResult) -> list[str]:
     return lines
 
 
+@deprecated_aliases(model="--model-type", ground="--ground-points", image="--image-points")
 @click.command(short_help="Fit an image correction (RPCV-0/RPCV-1/order 2) to GCPs.")
 @model_arg
 @click.option("--gcps", "gcps_path", metavar="GCPS.csv", default=None,
@@ -177,20 +186,21 @@ def _stats_table(result: ResectionResult) -> list[str]:
               help="Independent check points (same columns): accuracy only, not fitted.")
 @click.option("--points", "points_path", metavar="POINTS.csv", default=None,
               help="One file with a 'kind' column (gcp or icp) instead of --gcps/--icps.")
-@click.option("--ground", "ground_path", metavar="GROUND.csv", default=None,
+@click.option("--ground-points", "ground_path", metavar="GROUND.csv", default=None,
               help="Block point files instead of --gcps/--points: ground points (id, lon, lat, "
-              "h[, sigma_e, sigma_n, sigma_h], kind gcp or icp), with --image.")
-@click.option("--image", "image_path", metavar="IMAGE.csv", default=None,
-              help="Image measurements joined with --ground by id (id, image, row, col[, "
-              "sigma | sigma_row, sigma_col][, kind]), as 'geoblock simulate' writes them.")
+              "h[, sigma_e, sigma_n, sigma_h], kind gcp or icp), with --image-points.")
+@click.option("--image-points", "image_path", metavar="IMAGE.csv", default=None,
+              help="Image measurements joined with --ground-points by id (id, image, row, col"
+              "[, sigma | sigma_row, sigma_col][, kind]), as 'geoblock simulate' writes them.")
 @click.option("--image-id", default=None, metavar="ID",
-              help="The image of --image to refine MODEL with (needed when it holds several).")
+              help="The image of --image-points to refine MODEL with (needed when it holds "
+              "several).")
 @click.option("--order", type=click.IntRange(0, 2), default=1, show_default=True,
               help="0: shift (RPCV-0, >= 1 GCP); 1: affine (RPCV-1, >= 3 GCPs); "
               "2: quadratic (>= 6 GCPs).")
-@model_name_opt
-@click.option("--sigma-px", type=click.FloatRange(min=0.0, min_open=True), default=0.5,
-              show_default=True,
+@model_type_opt
+@click.option("--sigma-px", type=float, default=0.5, callback=positive_float,
+              show_default=True, metavar="PX",
               help="Image measurement sigma (pixels) of points without sigma_row/sigma_col.")
 @click.option("-o", "--output", metavar="OUT.json", default=None,
               help="Refined model as geoblock JSON; default MODEL's folder and stem "
@@ -198,10 +208,12 @@ def _stats_table(result: ResectionResult) -> list[str]:
 @click.option("--write", "writes", metavar="FORMAT:PATH", multiple=True, callback=_write_spec,
               help="Also write the refined model in FORMAT (a plugin's writer, e.g. rpc-txt); "
               "repeatable.")
+@overwrite_opt
 def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
            points_path: str | None, ground_path: str | None, image_path: str | None,
            image_id: str | None, order: int, model_name: str | None, sigma_px: float,
-           output: str | None, writes: tuple[tuple[str | None, str], ...]) -> None:
+           output: str | None, writes: tuple[tuple[str | None, str], ...],
+           overwrite: bool) -> None:
     """Refine MODEL with an image-space correction fitted to ground control points.
 
     MODEL (any registered sensor model) is wrapped in a polynomial correction of its image
@@ -214,17 +226,18 @@ def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
 
     Point files are CSV with a header (lon, lat in degrees, h in metres above the WGS84
     ellipsoid, row, col in pixels with 0 the centre of the first pixel): --gcps/--icps, one
-    --points file with a kind column, or a block's two files --ground and --image joined by
-    point id (those 'geoblock simulate' writes in OUTDIR/points; --image-id picks the image).
-    Nothing is written unless every output (-o and each --write) can be written.
+    --points file with a kind column, or a block's two files --ground-points and
+    --image-points joined by point id (those 'geoblock simulate' writes in OUTDIR/points;
+    --image-id picks the image). Nothing is written unless every output (-o and each --write)
+    can be written; an output that exists is refused before any work unless --overwrite.
 
     \b
     Examples:
       geoblock refine scene.json --gcps gcps.csv --icps icps.csv --order 1
       geoblock refine scene_RPC.TXT --points points.csv --order 0 -o scene.rpcv0.json \\
           --write rpc-txt:scene_refined_RPC.TXT
-      geoblock refine sim/images/spot1a_onboard.json --ground sim/points/ground.csv \\
-          --image sim/points/image.csv --image-id spot1a --order 1
+      geoblock refine sim/images/spot1a_onboard.json --ground-points sim/points/ground.csv \\
+          --image-points sim/points/image.csv --image-id spot1a --order 1
     """
     from geoblock.adjust import resect
     from geoblock.models.corrections import ImageCorrection
@@ -233,18 +246,25 @@ def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
     if points_path is not None and (gcps_path or icps_path):
         raise click.UsageError("give either --points or --gcps/--icps, not both")
     if block and (points_path or gcps_path or icps_path):
-        raise click.UsageError("give either --ground/--image or --points or --gcps/--icps, "
-                               "not several")
+        raise click.UsageError("give either --ground-points/--image-points or --points or "
+                               "--gcps/--icps, not several")
     if block and (ground_path is None or image_path is None):
-        raise click.UsageError("--ground and --image go together (ground points and image "
-                               "measurements joined by id)")
+        raise click.UsageError("--ground-points and --image-points go together (ground "
+                               "points and image measurements joined by id)")
     if image_id is not None and not block:
-        raise click.UsageError("--image-id selects an image of --image; give --ground and "
-                               "--image")
+        raise click.UsageError("--image-id selects an image of --image-points; give "
+                               "--ground-points and --image-points")
     if points_path is None and gcps_path is None and not block:
         raise click.UsageError("missing --gcps GCPS.csv (or --points with a kind column, or "
-                               "--ground with --image)")
+                               "--ground-points with --image-points)")
 
+    if output is None:
+        src = Path(model_path)
+        output = str(src.with_name(f"{src.stem}.refined.json"))
+    check_outputs({"--output": output, "--write": [path for _, path in writes]},
+                  {"MODEL": model_path, "--gcps": gcps_path, "--icps": icps_path,
+                   "--points": points_path, "--ground-points": ground_path,
+                   "--image-points": image_path}, overwrite=overwrite)
     model = open_model_arg(model_path, model_name)
     icps: ControlPoints | None
     if ground_path is not None and image_path is not None:  # the block files (checked above)
@@ -264,9 +284,6 @@ def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
     lines = [result.report(), "", *_stats_table(result), ""]
     click.echo("\n".join(lines))
 
-    if output is None:
-        src = Path(model_path)
-        output = str(src.with_name(f"{src.stem}.refined.json"))
     for written, label, messages in _write_all(refined, [("json", output), *writes]):
         click.echo(f"refined model written to {written} ({label})")
         for text in messages:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from geoblock.cli.options import check_outputs, deprecated_aliases, overwrite_opt
+
 __all__ = ["simulate"]
 
 
@@ -23,17 +25,6 @@ def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> No
     ctx.exit()
 
 
-def check_outdir(outdir: str, force: bool) -> Path:
-    """``outdir`` as a Path; refuse a non-empty directory without ``--force`` (UsageError)."""
-    path = Path(outdir)
-    if path.exists() and not path.is_dir():
-        raise click.UsageError(f"OUTDIR {outdir!r} exists and is not a directory")
-    if path.is_dir() and any(path.iterdir()) and not force:
-        raise click.UsageError(f"OUTDIR {outdir!r} is not empty; use --force to write into it "
-                               "(files of the same name are replaced)")
-    return path
-
-
 class _PresetsHelp(click.Command):
     """Fills the ``{presets}`` slot of the help text when help is shown (the presets module
     is not imported by ``geoblock --help`` or by other commands)."""
@@ -44,6 +35,7 @@ class _PresetsHelp(click.Command):
         return super().get_help(ctx)
 
 
+@deprecated_aliases(force="--overwrite")
 @click.command(cls=_PresetsHelp,
                short_help="Simulate a block with known truth (preset or scenario TOML).")
 @click.argument("scenario", metavar="SCENARIO")
@@ -55,19 +47,19 @@ class _PresetsHelp(click.Command):
               help="Seed of every random draw (default: the scenario's).")
 @click.option("--no-images", is_flag=True, default=False,
               help="Do not render the raw images (models, DEMs and points only).")
-@click.option("--force", is_flag=True, default=False,
-              help="Write into a non-empty OUTDIR (files of the same name are replaced).")
+@overwrite_opt
 @click.option("--list", "list_presets", is_flag=True, is_eager=True, expose_value=False,
               callback=_list_presets, help="List the scenario presets and exit.")
 def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, no_images: bool,
-             force: bool) -> None:
+             overwrite: bool) -> None:
     """Simulate the block SCENARIO into OUTDIR: a preset name or a scenario TOML file.
 
     Writes the true terrain and the measured DEM(s) (GeoTIFF), per image the true and the
     on-board model (JSON) and the raw image rendered through the true model, the point files
     (GCPs, ICPs, TPs, ICTPs) with their truth, block.toml for the adjustment engine, and
     report/ (footprints, accuracy of the on-board models at GCPs and ICPs, ICTP
-    discrepancies; Markdown, CSV, PNG). OUTDIR/scenario.toml is the scenario fully resolved:
+    discrepancies; Markdown, CSV, PNG). A non-empty OUTDIR is refused unless --overwrite
+    (then files of the same name are replaced, others kept). OUTDIR/scenario.toml is the scenario fully resolved:
     'geoblock simulate OUTDIR/scenario.toml OUT2' makes the same files again.
 
     \b
@@ -78,13 +70,15 @@ def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, 
     Examples:
       geoblock simulate teo2010-spot5 teo
       geoblock simulate aguilar2007-quickbird qb --variant full --no-images
-      geoblock simulate my-block.toml out --seed 7 --force
+      geoblock simulate my-block.toml out --seed 7 --overwrite
     """
     from geoblock.simulate.scenario import load_scenario
     from geoblock.workflows.scenario import run_scenario
 
+    check_outputs({"OUTDIR": outdir}, {"SCENARIO": scenario}, overwrite=overwrite,
+                  directories=["OUTDIR"])
     sc = load_scenario(scenario, variant=variant, seed=seed)
-    path = check_outdir(outdir, force)
+    path = Path(outdir)
     click.echo(f"{sc.name}: {sc.description}", err=True)
     result = run_scenario(sc, path, progress=lambda m: click.echo(m, err=True),
                           render=False if no_images else None)

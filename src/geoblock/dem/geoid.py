@@ -30,11 +30,16 @@ import numpy as np
 from geoblock._array import broadcast_float64
 from geoblock.dem.base import DemBase
 from geoblock.dem.protocol import Bounds
-from geoblock.errors import DemError
+from geoblock.errors import DemError, GeoidNotFoundError
 from geoblock.io.rasters import read_gtx
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["EGM96_FILENAME", "ConstantGeoidDem", "Geoid", "find_geoid", "geoid_search_path"]
+__all__ = ["API_GEOID_HINT", "EGM96_FILENAME", "ConstantGeoidDem", "Geoid", "find_geoid",
+           "geoid_search_path"]
+
+#: How to give the geoid grid in the Python API (front ends give their own spelling:
+#: :meth:`geoblock.errors.DemSettingError.with_hint`).
+API_GEOID_HINT = "pass geoid='path/to/egm96_15.gtx' or set GEOBLOCK_GEOID"
 
 EGM96_FILENAME = "egm96_15.gtx"
 """File name of the EGM96 15-arc-minute geoid grid (PROJ's name, Debian ``proj-data``)."""
@@ -228,27 +233,30 @@ def find_geoid(geoid: Geoid | str | os.PathLike[str] | None = None) -> Geoid:
     if geoid is not None:
         path = Path(geoid).expanduser()
         if not path.is_file():
-            raise DemError(f"geoid grid not found: geoid={str(geoid)!r} is not a file")
+            raise GeoidNotFoundError("", f"geoid grid not found: {str(geoid)!r} is not a file",
+                                     "give the path of a .gtx grid")
         return Geoid(path)
     env = os.environ.get("GEOBLOCK_GEOID")
     if env:
         path = Path(env).expanduser()
         if not path.is_file():
-            raise DemError(f"geoid grid not found: GEOBLOCK_GEOID={env!r} is not a file")
+            raise GeoidNotFoundError(
+                "", f"geoid grid not found: GEOBLOCK_GEOID={env!r} is not a file",
+                "set GEOBLOCK_GEOID to the path of a .gtx grid, or unset it")
         return Geoid(path)
     searched = geoid_search_path()
     for d in searched:
         candidate = d / EGM96_FILENAME
         if candidate.is_file():
             return Geoid(candidate)
-    raise DemError(
+    raise GeoidNotFoundError(
+        "",
         f"the EGM96 geoid grid {EGM96_FILENAME} is needed (the DEM's heights are above the "
-        "geoid) but was not found; searched: geoid= (not given), GEOBLOCK_GEOID (not set), "
+        "geoid) but was not found; searched: GEOBLOCK_GEOID (not set), "
         + ", ".join(str(d) for d in searched)
         + ". Install it with 'apt-get install proj-data' (Debian/Ubuntu: /usr/share/proj), or "
-        "download egm96_15.gtx from https://download.osgeo.org/proj/vdatum/ and pass "
-        "geoid='path/to/egm96_15.gtx' or set GEOBLOCK_GEOID"
-    )
+        "download egm96_15.gtx from https://download.osgeo.org/proj/vdatum/",
+        API_GEOID_HINT)
 
 
 class ConstantGeoidDem(DemBase):

@@ -56,11 +56,19 @@ from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
 from geoblock.dem.protocol import Bounds
 from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s
-from geoblock.errors import DemCoverageError, DemError
+from geoblock.errors import DemCoverageError, DemDatumError, DemError
 from geoblock.io.rasters import open_quietly, read_window
 from geoblock.pixels import PIXEL_CENTRE, pixel_to_map
 
-__all__ = ["BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "MosaicDem", "RasterDem",
+#: How to state a DEM's datum in the Python API (front ends give their own spelling:
+#: :meth:`geoblock.errors.DemDatumError.with_hint`).
+API_DATUM_HINT = (
+    "pass vertical='geoid' (heights above EGM96, e.g. SRTM; the Copernicus DEM uses EGM2008: "
+    "pass its grid with geoid=) or vertical='ellipsoid' (heights above WGS84), e.g. "
+    "open_dem(path, vertical='geoid'); or give the file a compound CRS such as "
+    "EPSG:4326+5773")
+
+__all__ = ["API_DATUM_HINT", "BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "MosaicDem", "RasterDem",
            "file_vertical"]
 
 VERTICALS = ("ellipsoid", "geoid")
@@ -287,20 +295,18 @@ class RasterDem(DemBase):
         stated, how = file_vertical(self._crs, self._driver)
         if vertical is None:
             if stated is None:
-                raise DemError(
-                    f"DEM {self._path}: its vertical datum is not stated (CRS {self._crs.name!r} "
-                    "has no vertical part) and geoblock does not guess it: pass "
-                    "vertical='geoid' (heights above EGM96, e.g. SRTM, Copernicus DEM uses "
-                    "EGM2008: pass its grid with geoid=) or vertical='ellipsoid' (heights above "
-                    "WGS84), e.g. open_dem(path, vertical='geoid'), or on the command line "
-                    "--vertical geoid; or give the file a compound CRS such as EPSG:4326+5773"
-                )
+                raise DemDatumError(
+                    str(self._path),
+                    f"its vertical datum is not stated (CRS {self._crs.name!r} has no "
+                    "vertical part) and geoblock does not guess it",
+                    API_DATUM_HINT)
             if stated == "other":
-                raise DemError(
-                    f"DEM {self._path}: {how} is not supported (geoblock converts EGM96 "
-                    "heights); pass vertical='geoid' with geoid= the grid of that datum, or "
-                    "vertical='ellipsoid'"
-                )
+                raise DemDatumError(
+                    str(self._path),
+                    f"{how} is not supported (geoblock converts EGM96 heights, or another "
+                    "geoid's with its grid)",
+                    "pass vertical='geoid' with geoid= the grid of that datum, or "
+                    "vertical='ellipsoid'")
             self._vertical = stated
             self._vertical_source = how
         else:

@@ -61,12 +61,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import tomli_w
 
 from geoblock.errors import BlockFileError, GeoblockIOError
 from geoblock.io.files import write_text
+
+if TYPE_CHECKING:
+    from geoblock.dem.protocol import DemSource
 
 __all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage", "OpenedBlock",
            "dumps_toml", "open_block", "read_block",
@@ -156,6 +159,31 @@ class BlockDem:
     vertical: str | None = None
     geoid: Path | None = None
     sigma: float | None = None
+
+    def to_source(self, block_name: str = "the block file") -> DemSource:
+        """The DEM, opened with :func:`geoblock.open_dem`.
+
+        Raises
+        ------
+        DemDatumError
+            The file does not state its vertical datum and the block file does not either;
+            the message says to set ``vertical`` in ``block_name``'s ``[dem]`` table.
+        GeoidNotFoundError
+            The geoid grid is not found; the message says to set ``geoid`` there.
+        """
+        from geoblock.errors import DemDatumError, GeoidNotFoundError
+        from geoblock.io.dem import open_dem
+
+        try:
+            return open_dem(self.source, vertical=self.vertical, geoid=self.geoid)
+        except DemDatumError as exc:
+            raise exc.with_hint(
+                f"set vertical = \"geoid\" (heights above EGM96, e.g. SRTM; with geoid = "
+                f"\"GRID.gtx\" for another geoid) or vertical = \"ellipsoid\" in the [dem] "
+                f"table of {block_name}") from None
+        except GeoidNotFoundError as exc:
+            raise exc.with_hint(f"set geoid = \"path/to/egm96_15.gtx\" in the [dem] table of "
+                                f"{block_name}, or GEOBLOCK_GEOID") from None
 
 
 @dataclass(frozen=True)
@@ -569,13 +597,21 @@ class OpenedBlock:
     options: dict[str, Any]
 
 
-def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
+def open_block(path: str | os.PathLike[str] | Block, *, name: str | None = None
+               ) -> OpenedBlock:
     """Open a block file: read it, open every model, point file and the DEM.
 
     The method (``mba``, ``dg``, ``rfm``, ``rpcv0``, ``rpcv1``, ``default``: see
     :mod:`geoblock.adjust.methods`) gives each image its parameter set or correction unless
     the image states its own; ``[options]`` may set the engine's options
     (:data:`ADJUST_OPTIONS`) and nothing else.
+
+    Parameters
+    ----------
+    path : str, path-like or Block
+        The block file, or one already read (:func:`read_block`).
+    name : str, optional
+        How messages name the block (default: its path, or ``"<block>"`` for a Block).
 
     Raises
     ------
@@ -588,12 +624,12 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     from geoblock.adjust.block import Block as AdjustBlock
     from geoblock.adjust.methods import METHODS, prepare_model
     from geoblock.errors import AdjustmentError
-    from geoblock.io.dem import open_dem
     from geoblock.io.models import open_model
     from geoblock.io.points import PointFileError, read_observations
 
     spec = path if isinstance(path, Block) else read_block(path)
-    name = "<block>" if isinstance(path, Block) else str(path)
+    if name is None:
+        name = "<block>" if isinstance(path, Block) else str(path)
     if spec.method not in METHODS:
         raise BlockFileError(f"{name}: 'method' {spec.method!r} is not known; methods: "
                              f"{', '.join(METHODS)}")
@@ -642,7 +678,7 @@ def open_block(path: str | os.PathLike[str] | Block) -> OpenedBlock:
     dem = None
     extra: dict[str, Any] = {}  # the Block's default DEM sigma unless the file gives one
     if spec.dem is not None:
-        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical, geoid=spec.dem.geoid)
+        dem = spec.dem.to_source(name)
         if spec.dem.sigma is not None:
             extra["dem_sigma_m"] = spec.dem.sigma
     try:

@@ -213,7 +213,8 @@ class MatchImage:
 
     @classmethod
     def from_files(cls, image_id: str, image: Any, model: Any = None, *,
-             crop_offset: tuple[float, float] | None = None, crop: bool = True) -> MatchImage:
+             crop_offset: tuple[float, float] | None = None, crop: bool = True,
+             force: bool = False, names: Mapping[str, str] | None = None) -> MatchImage:
         """Open an image and its model and reconcile them.
 
         Parameters
@@ -228,9 +229,16 @@ class MatchImage:
             model's scene and does not say so itself (a pixel-unit geotransform).
         crop : bool
             False: take the image's pixels as the model's, whatever the shapes.
+        force : bool
+            True: use the model even when its image ids differ from the image's
+            (:func:`geoblock.models.crop.model_for_image`).
+        names : mapping, optional
+            How refusals name the ways out (:func:`~geoblock.models.crop.model_for_image`).
 
         Raises
         ------
+        ModelImageMismatchError
+            The model carries image ids that differ from the image's (``force=False``).
         CropError
             The image does not fit the model (shapes differ with no crop offset, or the crop
             lies outside the scene); the message names the image.
@@ -244,7 +252,8 @@ class MatchImage:
         source = open_image(image)
         given = open_model(source.path) if model is None else (
             open_model(model) if isinstance(model, str | os.PathLike) else model)
-        fitted = model_for_image(given, source, crop_offset=crop_offset, crop=crop)
+        fitted = model_for_image(given, source, crop_offset=crop_offset, crop=crop,
+                                 names=names, force=force)
         offset = (0.0, 0.0)
         if fitted is not given and isinstance(fitted, CroppedModel):
             base = given.offset if isinstance(given, CroppedModel) else (0.0, 0.0)
@@ -996,7 +1005,6 @@ def match_block(block: Any, *, dem: DemSource | None = None,
     """
     from geoblock.errors import BlockFileError
     from geoblock.io.blocks import Block, read_block
-    from geoblock.io.dem import open_dem
 
     spec = block if isinstance(block, Block) else read_block(block)
     name = "<block>" if isinstance(block, Block) else str(block)
@@ -1013,7 +1021,7 @@ def match_block(block: Any, *, dem: DemSource | None = None,
         if spec.dem is None:
             raise BlockFileError(f"{name}: no [dem] table, and no DEM given: matching "
                                  "needs the terrain to predict where the images meet")
-        dem = open_dem(spec.dem.source, vertical=spec.dem.vertical, geoid=spec.dem.geoid)
+        dem = spec.dem.to_source(name)
     images = [MatchImage.from_files(im.id, im.raster, im.model) for im in spec.images]
     return match_images(images, dem, options=options, progress=progress)
 

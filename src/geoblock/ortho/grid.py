@@ -61,7 +61,12 @@ if TYPE_CHECKING:
     from geoblock.io.dem import EngineDem
     from geoblock.models.protocol import SensorModel
 
-__all__ = ["MAX_PIXELS", "OutputGrid", "nice_resolution"]
+__all__ = ["MAX_PIXELS", "OVERSAMPLING_LIMIT", "OutputGrid", "check_oversampling",
+           "nice_resolution"]
+
+#: An output pixel more than this many times finer than the image's ground sample distance
+#: adds no detail and costs its square in time and space: :func:`check_oversampling` warns.
+OVERSAMPLING_LIMIT = 10.0
 
 _TAP_EPS = 1e-8  # gdalwarp's tolerance when snapping -tap bounds
 
@@ -571,6 +576,58 @@ def _outline_at(model: SensorModel, lo: float, hi: float) -> tuple[np.ndarray, n
     if not ok.any():
         raise ValueError("OutputGrid.for_model: the image outline does not backproject")
     return lon[ok], lat[ok]
+
+
+def check_oversampling(grid: OutputGrid, model: SensorModel, dem: Any,
+                       names: Mapping[str, str] | None = None) -> float | None:
+    """Warn when ``grid``'s pixels are over :data:`OVERSAMPLING_LIMIT` (10) times finer than
+    the image's ground sample distance (a likely typo: ``--res 0.02`` on a 0.5 m image).
+
+    Parameters
+    ----------
+    grid : OutputGrid
+    model : SensorModel
+        The image's model (its GSD is taken at the image centre, on the DEM).
+    dem : DemSource or anything :func:`geoblock.localize` takes
+    names : mapping of str to str, optional
+        How to name ``"resolution"`` in the message (the command line: ``--res``).
+
+    Returns
+    -------
+    float or None
+        The image's GSD in ``grid``'s CRS units, or None when it cannot be computed (no
+        warning then).
+
+    Warns
+    -----
+    ResolutionWarning
+        Naming the resolution asked for and the image's GSD.
+    """
+    import warnings
+
+    from geoblock.dem.intersect import as_dem_source, localize
+    from geoblock.errors import ResolutionWarning
+
+    rows, cols = model.shape
+    rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
+    try:
+        centre, _ = localize(model, rc, cc, as_dem_source(dem), warn=False)
+        h = float(centre.h)
+        if not math.isfinite(h):
+            h = 0.5 * (model.height_range[0] + model.height_range[1])
+        gsd = _gsd(model, rc, cc, h, grid.crs)
+    except (ValueError, ArithmeticError):  # no GSD at the centre: nothing to compare with
+        return None
+    finest = min(grid.resolution)
+    if finest * OVERSAMPLING_LIMIT < gsd:
+        units = "degree" if grid.crs.is_geographic else "m"
+        warnings.warn(
+            f"{_name(names, 'resolution')} {_fmt_res(grid.resolution)} is "
+            f"{gsd / finest:.0f} times finer than the image's ground sample distance "
+            f"({gsd:.3g} {units} at its centre): {grid.shape[0]} x {grid.shape[1]} output "
+            "pixels, no more detail than at the GSD; check the value (a typo such as 0.02 "
+            "for 0.2?)", ResolutionWarning, stacklevel=2)
+    return gsd
 
 
 def _gsd(model: SensorModel, rc: float, cc: float, h: float, crs: pyproj.CRS) -> float:

@@ -29,7 +29,8 @@ from geoblock.io.models import write_model
 from geoblock.report.figures import error_vector_plot, to_local_en
 from geoblock.report.tables import stats_table
 
-__all__ = ["image_residuals", "report_markdown", "result_dict", "write_result"]
+__all__ = ["check_output_directory", "image_residuals", "report_markdown", "result_dict",
+           "write_result"]
 
 
 def _f(x: Any) -> Any:
@@ -277,6 +278,17 @@ def _previous_output(entry: Path) -> bool:
             m.suffix == ".json" and m.is_file() for m in entry.iterdir())
     return entry.is_file() and (entry.name in ("report.json", "report.md")
                                 or entry.suffix == ".png")
+
+
+def check_output_directory(out_dir: str | os.PathLike[str]) -> None:
+    """Refuse, before the adjustment runs, an ``out_dir`` :func:`write_result` would not replace.
+
+    Raises
+    ------
+    OutputDirectoryError
+        ``out_dir`` holds anything but a previous adjustment's output (names one entry).
+    """
+    files.check_replaceable(out_dir, "adjustment output ", replaces=_previous_output)
 
 
 def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from geoblock.cli.options import check_outputs, deprecated_aliases, overwrite_opt
 from geoblock_papers.registry import EXPERIMENTS
 
 __all__ = ["experiment"]
@@ -33,36 +34,41 @@ seed, runs the paper's methods and compares with the simulated truth. OUTDIR (de
 table, with 95 % confidence intervals over the seeds and says which findings reproduced
 (and why not), the PNG figures, and results.json with every number.
 
-The small variant (the default) shrinks the images, not the set-up, and runs in CI; --full
-uses the papers' image sizes and more seeds.
+The small variant (the default) shrinks the images, not the set-up, and runs in CI;
+--variant full uses the papers' image sizes and more seeds. A non-empty OUTDIR is refused
+before anything is run unless --overwrite (then files of the same name are replaced).
 
 \b
 Examples:
   geoblock experiment teo2010
   geoblock experiment chen2008 out/chen2008 --repeats 6 --seed 100
-  geoblock experiment aguilar2007 /tmp/aguilar --full --repeats 20
+  geoblock experiment aguilar2007 /tmp/aguilar --variant full --repeats 20
 """
 
 
+@deprecated_aliases(full=("--variant", "full"))
 @click.command(help=_HELP.format(names=_names_help()),
                short_help="Reproduce a paper's experiments on simulated blocks, with a report.")
 @click.argument("name", type=click.Choice(list(EXPERIMENTS)), metavar="NAME")
 @click.argument("outdir", metavar="[OUTDIR]", required=False, default=None)
-@click.option("--full", is_flag=True, default=False,
-              help="The papers' image sizes and more repetitions (minutes to hours) instead of "
-              "the small variant (seconds to a minute, the one CI runs).")
+@click.option("--variant", type=click.Choice(["small", "full"]), default="small",
+              show_default=True,
+              help="small: shrunk images, the papers' set-up (seconds to a minute, the one CI "
+              "runs); full: the papers' image sizes and more repetitions (minutes to hours).")
 @click.option("--repeats", type=click.IntRange(min=1), default=None, metavar="N",
               help="Repetitions over seeds (default: the experiment's, for the variant).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
               help="First seed; repetition k uses seed + k.")
-def experiment(name: str, outdir: str | None, full: bool, repeats: int | None,
-               seed: int) -> None:
+@overwrite_opt
+def experiment(name: str, outdir: str | None, variant: str, repeats: int | None,
+               seed: int, overwrite: bool) -> None:
     from pathlib import Path
 
     from geoblock_papers.registry import run_experiment
 
     path = Path(outdir) if outdir else Path(f"experiment-{name}")
-    result = run_experiment(name, path, full=full, repeats=repeats, seed=seed,
+    check_outputs({"OUTDIR": path}, overwrite=overwrite, directories=["OUTDIR"])
+    result = run_experiment(name, path, full=variant == "full", repeats=repeats, seed=seed,
                             progress=lambda m: click.echo(m, err=True))
     click.echo(f"report: {result.report}")
     click.echo(f"results: {result.results}")

@@ -21,7 +21,15 @@ from typing import Any
 
 import click
 
-from geoblock.cli.options import model_arg, model_name_opt, open_model_arg
+from geoblock.cli.options import (
+    check_outputs,
+    deprecated_aliases,
+    model_arg,
+    model_type_opt,
+    open_model_arg,
+    overwrite_opt,
+    positive_float,
+)
 
 __all__ = ["FORMATS", "export_rpc_command", "fit_rfm_command", "infer_format"]
 
@@ -91,6 +99,7 @@ def _renamed(exc: Exception, staged: Path, final: Path) -> Exception:
         return GeoblockError(text)
 
 
+@deprecated_aliases(model="--model-type")
 @click.command("export-rpc",
                short_help="Write any sensor model as an RPC (_RPC.TXT, .RPB, GeoTIFF tags).")
 @model_arg
@@ -98,11 +107,11 @@ def _renamed(exc: Exception, staged: Path, final: Path) -> Exception:
 @click.option("--format", "fmt", type=click.Choice(sorted(FORMATS)), default=None,
               help="rpc: GDAL _RPC.TXT; rpb: DigitalGlobe .RPB; tif: a GeoTIFF with RPC tags. "
               "Default: from OUT's suffix (.txt, .RPB, .tif/.tiff).")
-@click.option("--image", "image_path", metavar="SRC.tif", default=None,
+@click.option("--image", "image_path", metavar="IMAGE", default=None,
               help="With --format tif: OUT is a copy of this raster (its pixels kept) with the "
-              "RPC tags; SRC.tif is not modified. Without it OUT is a sparse placeholder of "
+              "RPC tags; IMAGE is not modified. Without it OUT is a sparse placeholder of "
               "the model's image size (an existing GeoTIFF OUT keeps its pixels).")
-@model_name_opt
+@model_type_opt
 @click.option("--grid", nargs=3, type=click.IntRange(min=2), metavar="ROWS COLS HEIGHTS",
               default=None,
               help="Fit grid over the image and the model's height range, for a model that is "
@@ -113,10 +122,11 @@ def _renamed(exc: Exception, staged: Path, final: Path) -> Exception:
 @click.option("--max-error-px", type=click.FloatRange(min=0.0), metavar="PX", default=None,
               help="Refuse an approximate RPC whose largest check-grid error exceeds PX pixels "
               "[default: 0.5 for a fitted model, 0.001 for a refitted corrected RPC].")
+@overwrite_opt
 def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
                        image_path: str | None, model_name: str | None,
                        grid: tuple[int, int, int] | None, regularization: float | str | None,
-                       max_error_px: float | None) -> None:
+                       max_error_px: float | None, overwrite: bool) -> None:
     """Write MODEL as an RPC00B in OUT, for GDAL, QGIS, ASP or s2p.
 
     MODEL is any file geoblock opens: vendor metadata or geoblock model JSON (from 'geoblock
@@ -159,9 +169,9 @@ def export_rpc_command(model_path: str, out_path: str, fmt: str | None,
     if image is not None:
         if fmt != "tif":
             raise click.UsageError(f"--image goes with --format tif, not {fmt}")
-        if final.exists() and final.resolve() == image.resolve():
-            raise click.UsageError(f"OUT {out_path!r} is the --image raster: give another path "
-                                   "(the source raster is never modified)")
+    # the source raster is never modified; an existing OUT only with --overwrite
+    check_outputs({"OUT": out_path}, {"MODEL": model_path, "--image": image_path},
+                  overwrite=overwrite)
 
     model = open_model_arg(model_path, model_name)
     options: dict[str, Any] = {k: v for k, v in (("grid", grid),
@@ -250,18 +260,20 @@ def _order(ctx: click.Context, param: click.Parameter, value: str) -> int | str:
               "RPC00B), or a projected CRS (EPSG:32630...).")
 @click.option("--shape", nargs=2, type=click.IntRange(min=1), default=None,
               metavar="ROWS COLS", help="Image size (default: the GCPs' image extent).")
-@click.option("--image", "raster", metavar="IMG.tif", default=None,
+@click.option("--image", "raster", metavar="IMAGE", default=None,
               help="Take the image size from this raster.")
 @click.option("--image-id", default=None, metavar="ID",
               help="The image of IMAGE.csv to fit (needed when it holds several).")
-@click.option("--sigma-px", type=click.FloatRange(min=0.0, min_open=True), default=0.5,
-              show_default=True, help="Image sigma (pixels) of points without one.")
+@click.option("--sigma-px", type=float, default=0.5, callback=positive_float,
+              show_default=True, metavar="PX",
+              help="Image sigma (pixels) of points without one.")
 @click.option("-o", "--output", metavar="OUT.json", default=None,
               help="The RFM as geoblock model JSON (default: IMAGE.csv's stem + '.rfm.json').")
+@overwrite_opt
 def fit_rfm_command(ground_path: str, image_path: str, order: int | str,
                     common_denominator: bool, crs: str, shape: tuple[int, int] | None,
                     raster: str | None, image_id: str | None, sigma_px: float,
-                    output: str | None) -> None:
+                    output: str | None, overwrite: bool) -> None:
     """Fit a terrain-dependent rational function model to ground control points.
 
     GROUND.csv holds the ground points (id, lon, lat in degrees, h in metres above the WGS84
@@ -285,6 +297,9 @@ def fit_rfm_command(ground_path: str, image_path: str, order: int | str,
 
     if raster is not None and shape is not None:
         raise click.UsageError("give either --shape or --image, not both")
+    out = Path(output) if output else Path(image_path).with_suffix(".rfm.json")
+    check_outputs({"--output": out}, {"GROUND.csv": ground_path, "IMAGE.csv": image_path,
+                                      "--image": raster}, overwrite=overwrite)
     if raster is not None:
         from geoblock.io import open_quietly
 
@@ -300,6 +315,5 @@ def fit_rfm_command(ground_path: str, image_path: str, order: int | str,
     size = "" if shape is not None else " (the GCPs' extent: give --shape or --image)"
     click.echo(f"ground frame: {model.crs or 'lon/lat (an exact RPC00B)'}; image "
                f"{model.shape[0]} x {model.shape[1]} px{size}")
-    out = Path(output) if output else Path(image_path).with_suffix(".rfm.json")
     geoblock.write_model(model, out, format="json")
     click.echo(f"wrote {out}")
