@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/bench_demo.py [--repeat N] [--size small|tiny] [--keep DIR]``.
 
-Each run is the console command itself, ``geoblock demo OUTDIR --size SIZE`` (the script
+Each run is the console command itself, ``geoblock demo OUTDIR --variant SIZE`` (the script
 beside this Python, else ``python -m geoblock.cli``), in its own process with a fresh
 OUTDIR: the interpreter's start-up, the imports and numba's cache loading are in the time,
 as a user sees them. Printed per run: the wall time and the child's peak resident set size
@@ -28,7 +28,7 @@ from pathlib import Path
 def _command(outdir: Path, size: str) -> list[str]:
     script = Path(sys.executable).with_name("geoblock")
     head = [str(script)] if script.is_file() else [sys.executable, "-m", "geoblock.cli"]
-    return [*head, "demo", str(outdir), "--size", size]
+    return [*head, "demo", str(outdir), "--variant", size]
 
 
 def run_once(outdir: Path, size: str) -> tuple[float, float, dict]:
@@ -54,7 +54,7 @@ def main() -> None:
                         help="keep the last run's OUTDIR here (replaced)")
     args = parser.parse_args()
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    print(f"geoblock demo --size {args.size}: {args.repeat} runs, {os.cpu_count()} CPUs, "
+    print(f"geoblock demo --variant {args.size}: {args.repeat} runs, {os.cpu_count()} CPUs, "
           f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     walls, peaks = [], []
     with tempfile.TemporaryDirectory(prefix="bench-demo-") as tmp:

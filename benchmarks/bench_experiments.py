@@ -11,7 +11,7 @@ the time of each seed's simulation and adjustments, printed under the case.
 Cases: ``teo2010`` and ``chen2008`` (small variant, the default number of seeds; each in its
 own process, so chen2008 does not reuse teo2010's simulations as it does in one Python
 process). ``--only`` picks cases by experiment name (any of ``geoblock experiment``'s, e.g.
-``chen1993`` or ``aguilar2007``). ``--full`` adds ``teo2010 --full --repeats 1`` (one seed of
+``chen1993`` or ``aguilar2007``). ``--full`` adds ``teo2010 --variant full --repeats 1`` (one seed of
 the papers' image sizes: about 20 s and 1.1 GB). The first run of each case also warms
 numba's on-disk kernel cache; ``--repeat N`` runs each case N times and reports the best and
 the median. ``--blas-threads N`` sets ``OPENBLAS_NUM_THREADS`` (and ``OMP_NUM_THREADS``) in
@@ -40,7 +40,7 @@ def run_case(args: list[str], outdir: Path,
     ``OMP_NUM_THREADS`` set to ``blas_threads`` if given); its wall time (s), peak RSS (MiB)
     and progress lines."""
     command = [sys.executable, "-m", "geoblock.cli", "experiment", args[0], str(outdir),
-               *args[1:]]
+               *args[1:], "--overwrite"]  # every repeat writes the same OUTDIR
     env = dict(os.environ)
     if blas_threads is not None:
         env.update(OPENBLAS_NUM_THREADS=str(blas_threads), OMP_NUM_THREADS=str(blas_threads))
@@ -73,7 +73,7 @@ def main() -> None:
     args = parser.parse_args()
     cases = [[name] for name in (args.only or CASES)]
     if args.full:
-        cases.append(["teo2010", "--full", "--repeats", "1"])
+        cases.append(["teo2010", "--variant", "full", "--repeats", "1"])
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-exp-"))
     threads = "inherited" if args.blas_threads is None else str(args.blas_threads)
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs, BLAS threads {threads}, "

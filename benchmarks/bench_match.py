@@ -167,8 +167,9 @@ def command(case: dict, repeat: int, outdir: Path) -> dict:
     for model in case["models"]:
         args += ["--model", model]
     for image_id in case["ids"]:
-        args += ["--id", image_id]
-    args += ["--dem", *case["dem"], "-o", str(outdir / f"{case['name']}.csv")]
+        args += ["--image-id", image_id]
+    # every repeat writes the same file
+    args += ["--dem", *case["dem"], "-o", str(outdir / f"{case['name']}.csv"), "--overwrite"]
     times, peaks = [], []
     for k in range(repeat + 1):
         t0 = time.perf_counter()

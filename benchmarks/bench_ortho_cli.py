@@ -141,7 +141,7 @@ def geoblock_cmd(case: dict, out: str, extra=()) -> list[str]:
     return [_geoblock_exe(), "-q", "ortho", case["source"], out, "--dem", case["dem"],
             "--crs", case["crs"], "--res", repr(case["res"]),
             "--bounds", repr(xmin), repr(ymin), repr(xmax), repr(ymax),
-            "--resampling", "bilinear", "--no-progress", *extra]
+            "--resampling", "bilinear", "--no-progress", "--overwrite", *extra]
 
 
 def gdalwarp_cmd(case: dict, out: str, et: float) -> list[str]:

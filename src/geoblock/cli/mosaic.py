@@ -76,8 +76,9 @@ def mosaic(output: str, orthos: tuple[str, ...], method: str, feather_px: float,
                       overwrite=overwrite)
     except OutputExistsError as exc:  # OUT given last, the gdalwarp habit, is a likely cause
         if str(exc).startswith("OUT "):
-            raise OutputExistsError(f"{exc}; note that geoblock mosaic takes OUT first, as in "
-                                    f"'geoblock mosaic OUT {' '.join(orthos)}'") from None
+            raise OutputExistsError(f"{exc}; if {output!r} is an ortho given first by mistake: "
+                                    "geoblock mosaic takes OUT first (geoblock mosaic OUT "
+                                    "ORTHO...)") from None
         raise
     sources = [open_ortho(path, chunks=chunks) for path in orthos]
     result = make_mosaic(sources, method=method, feather_px=feather_px, nodata=nodata,

@@ -109,7 +109,7 @@ def plugins(ctx: click.Context, as_json: bool) -> None:
     """List the loaded plugins and the sensor models they register.
 
     For each plugin: its name, distribution, version and the geoblock hooks it implements;
-    then every registered model name (what 'geoblock info --model NAME' and
+    then every registered model name (what 'geoblock info --model-type NAME' and
     'geoblock.open_model(path, model=NAME)' accept) with the plugin providing it, and the
     commands plugins add to this command line. GEOBLOCK_PLUGINS=a,b restricts which
     entry points load; GEOBLOCK_PLUGIN_MODULES=pkg.mod,... loads extra plugin modules by
