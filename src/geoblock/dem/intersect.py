@@ -295,12 +295,22 @@ def _resolution(dem: DemSource) -> float:
 
 
 def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float) -> Bounds | None:
+    """``(west, south, east, north)`` of the finite points, padded by ``pad_m`` metres.
+
+    Longitudes are unwrapped around their circular mean first, so the box of a scene across
+    the antimeridian is the narrow one (e.g. ``179.8`` to ``180.02``, ``east`` beyond 180),
+    not the whole band from -180 to 180; DEM sources wrap the longitudes of a box into their
+    own range (:data:`geoblock.dem.Bounds`).
+    """
     lon = np.concatenate([p[0] for p in lon_lat])
     lat = np.concatenate([p[1] for p in lon_lat])
     good = np.isfinite(lon) & np.isfinite(lat)
     if not good.any():
         return None
     lon, lat = lon[good], lat[good]
+    rad = np.radians(lon)
+    ref = math.degrees(math.atan2(float(np.mean(np.sin(rad))), float(np.mean(np.cos(rad)))))
+    lon = ref + (lon - ref + 180.0) % 360.0 - 180.0
     pad_lat = pad_m / _M_PER_DEG
     pad_lon = pad_lat / max(math.cos(math.radians(float(np.max(np.abs(lat))))), 1e-6)
     return (float(lon.min() - pad_lon), float(lat.min() - pad_lat),

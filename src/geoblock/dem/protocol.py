@@ -12,7 +12,9 @@ from geoblock.typing import ArrayLike, Float64Array
 __all__ = ["Bounds", "DemSource"]
 
 Bounds = tuple[float, float, float, float]
-"""``(west, south, east, north)``, degrees (WGS84)."""
+"""``(west, south, east, north)``, degrees (WGS84). A box across the antimeridian keeps
+``west < east`` with one end beyond +-180 (e.g. ``(179.8, -0.1, 180.02, 0.1)``); a DEM source
+takes the longitudes of a box modulo 360."""
 
 
 @runtime_checkable

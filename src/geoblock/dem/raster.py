@@ -1010,7 +1010,13 @@ def _rebuild_mosaic(tiles: Sequence[RasterDem], strict: bool) -> MosaicDem:
 
 # ---------------------------------------------------------------------------- helpers
 def _overlap(a: Bounds, b: Bounds) -> bool:
-    return not (a[2] < b[0] or b[2] < a[0] or a[3] < b[1] or b[3] < a[1])
+    """Whether two ``(west, south, east, north)`` degree boxes meet, longitudes modulo 360
+    (a tile stored as 180..181 meets a box from -179.9 to -179.5, a box 179.8..180.02 meets
+    a tile from -180 to -179)."""
+    if a[3] < b[1] or b[3] < a[1]:
+        return False
+    return any(not (a[2] < b[0] + k or b[2] + k < a[0]) for k in (-720.0, -360.0, 0.0,
+                                                                   360.0, 720.0))
 
 
 def _fmt_bounds(b: Bounds) -> str:
