@@ -64,6 +64,7 @@ LAYERS: dict[str, int] = {
     "geoblock.models.crop": 3,  # model_for_image opens the image it is given (io.images)
     # 4 engines
     "geoblock.dem.intersect": 4,  # localize
+    "geoblock.triangulation": 4,  # triangulate (any models, no DEM)
     "geoblock.ortho.limits": 0,  # the output-grid limits (no imports: shown by --help)
     "geoblock.ortho": 4,
     "geoblock.adjust": 4,

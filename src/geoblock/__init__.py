@@ -29,6 +29,7 @@ if TYPE_CHECKING:  # the lazily imported names, for type checkers and IDEs
         get_registry,
     )
     from geoblock.ortho import orthorectify
+    from geoblock.triangulation import triangulate
     from geoblock.typing import EcefCoords, GroundCoords, ImageCoords, LineOfSight, Status
 
 try:
@@ -51,6 +52,7 @@ _LAZY = {
     "from_dict": "geoblock.models",
     "get_registry": "geoblock.models",
     "orthorectify": "geoblock.ortho",
+    "triangulate": "geoblock.triangulation",
     "EcefCoords": "geoblock.typing",
     "GroundCoords": "geoblock.typing",
     "ImageCoords": "geoblock.typing",
@@ -83,6 +85,7 @@ __all__ = [
     "open_model",
     "orthorectify",
     "read_points",
+    "triangulate",
     "write_model",
     "write_points",
 ]

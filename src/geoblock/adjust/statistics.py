@@ -505,13 +505,15 @@ class IctpDiscrepancies:
     ----------
     id, image_a, image_b : ndarray of str
     lon_a, lat_a, h_a, lon_b, lat_b, h_b : ndarray
-        The measurement of each image ray-traced onto the DEM, degrees and metres above the
-        ellipsoid (NaN where it failed).
+        The measurement of each image ray-traced onto the DEM (or, without a DEM, the point
+        of its ray nearest the other ray), degrees and metres above the ellipsoid (NaN where
+        it failed).
     e, n, u : ndarray
         Point from image ``b`` minus point from image ``a``, metres along local east, north
         and up at point ``a``.
     status_a, status_b : ndarray of uint8
-        :class:`~geoblock.typing.Status` of each ray tracing.
+        :class:`~geoblock.typing.Status` of each ray tracing (without a DEM: of the pair's
+        triangulation).
     unpaired : ndarray of str
         Points measured in a single image (no discrepancy; not in the arrays above).
     """
@@ -578,7 +580,7 @@ def ictp_accuracy(
     image: ArrayLike,
     row: ArrayLike,
     col: ArrayLike,
-    dem: DemSource | float,
+    dem: DemSource | float | None,
     **localize_options: Any,
 ) -> IctpDiscrepancies:
     """Relative accuracy between images at independent check tie points (Teo et al. 2010).
@@ -589,6 +591,12 @@ def ictp_accuracy(
     along E and N (:attr:`IctpDiscrepancies.stats`); the horizontal and 3D distances are
     :attr:`~IctpDiscrepancies.distance_2d` and :attr:`~IctpDiscrepancies.distance_3d`.
 
+    With ``dem=None`` the pairs are triangulated instead (:func:`geoblock.triangulation.
+    triangulate`, no DEM): the two ground points of a pair are the ends of the common
+    perpendicular of its two rays, so the discrepancy is the rays' miss vector (its length
+    the pair's miss distance), free of the DEM's height errors, which the DEM route turns into
+    horizontal discrepancies along the rays' parallax.
+
     Parameters
     ----------
     models : mapping of str to SensorModel
@@ -598,10 +606,13 @@ def ictp_accuracy(
         Point identifier and image name of each measurement.
     row, col : array_like, (K,)
         Measured image coordinates, pixels.
-    dem : DemSource or float
-        Terrain heights above the ellipsoid (a number means a constant height).
+    dem : DemSource, float or None
+        Terrain heights above the ellipsoid (a number means a constant height); None
+        triangulates each pair of rays instead.
     **localize_options
-        Passed to :func:`geoblock.localize` (``method``, ``tolerance_m``, ``warn`` ...).
+        Passed to :func:`geoblock.localize` (``method``, ``tolerance_m``, ``warn`` ...), or
+        with ``dem=None`` to :func:`~geoblock.triangulation.triangulate` (``tolerance_m``,
+        ``max_iterations``, ``warn`` ...).
 
     Returns
     -------
@@ -641,11 +652,12 @@ def ictp_accuracy(
     lat = np.full(k, np.nan)
     h = np.full(k, np.nan)
     status = np.full(k, np.uint8(Status.INVALID_INPUT), dtype=np.uint8)
-    for name, model in models.items():
-        sel = np.flatnonzero(images == str(name))
-        if sel.size:
-            g, s = localize(model, r[sel], c[sel], dem, **localize_options)
-            lon[sel], lat[sel], h[sel], status[sel] = g.lon, g.lat, g.h, s
+    if dem is not None:
+        for name, model in models.items():
+            sel = np.flatnonzero(images == str(name))
+            if sel.size:
+                g, s = localize(model, r[sel], c[sel], dem, **localize_options)
+                lon[sel], lat[sel], h[sel], status[sel] = g.lon, g.lat, g.h, s
 
     # every pair of images measuring the same point
     idx_a: list[IndexArray] = []
@@ -664,13 +676,37 @@ def ictp_accuracy(
         raise ObservationError(f"{where}: no point is measured in two images; ICTPs need a "
                                "measurement in each of at least two images")
     paired = np.union1d(ids[a], ids[b])
-    de, dn, du = coords.enu_offsets(lon[a], lat[a], h[a], lon[b], lat[b], h[b])
+    lon_a, lat_a, h_a, status_a = lon[a], lat[a], h[a], status[a]
+    lon_b, lat_b, h_b, status_b = lon[b], lat[b], h[b], status[b]
+    if dem is None:  # each pair triangulated: the ends of its rays' common perpendicular
+        lon_a, lat_a, h_a, status_a, lon_b, lat_b, h_b, status_b = _pair_feet(
+            models, images, r, c, a, b, **localize_options)
+    de, dn, du = coords.enu_offsets(lon_a, lat_a, h_a, lon_b, lat_b, h_b)
     return IctpDiscrepancies(
         id=ids[a], image_a=images[a], image_b=images[b],
-        lon_a=lon[a], lat_a=lat[a], h_a=h[a], lon_b=lon[b], lat_b=lat[b], h_b=h[b],
-        e=de, n=dn, u=du, status_a=status[a], status_b=status[b],
+        lon_a=lon_a, lat_a=lat_a, h_a=h_a, lon_b=lon_b, lat_b=lat_b, h_b=h_b,
+        e=de, n=dn, u=du, status_a=status_a, status_b=status_b,
         unpaired=np.setdiff1d(np.unique(ids), paired),
     )
+
+
+def _pair_feet(models: Mapping[str, SensorModel], images: StrArray, r: Float64Array,
+               c: Float64Array, a: IndexArray, b: IndexArray, **options: Any
+               ) -> tuple[NDArray[Any], ...]:
+    """Triangulate each pair ``(a[j], b[j])`` of measurements alone; the feet of the point
+    on ray a and ray b (lon, lat, h) and the pair's status, twice."""
+    from geoblock.triangulation import triangulate  # same layer; lazy like localize
+
+    m = a.size
+    pair = np.concatenate([np.arange(m), np.arange(m)]).astype(str)
+    both = np.concatenate([a, b])
+    t = triangulate(models, pair, images[both], r[both], c[both], **options)
+    feet = coords.ecef_to_geodetic(t.foot[:, 0], t.foot[:, 1], t.foot[:, 2])
+    status = t.status[t.point]
+    out: list[NDArray[Any]] = []
+    for half in (slice(0, m), slice(m, 2 * m)):
+        out += [feet.lon[half], feet.lat[half], feet.h[half], status[half]]
+    return tuple(out)
 
 
 # --------------------------------------------------------------------------- geometry helper

@@ -258,6 +258,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     from geoblock.cli.project import backproject, project
     from geoblock.cli.refine import refine
     from geoblock.cli.simulate import simulate
+    from geoblock.cli.triangulate import triangulate
 
     @click.group(
         cls=GeoblockGroup,
@@ -297,6 +298,7 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     cli.add_command(adjust)
     cli.add_command(localize)
     cli.add_command(match)
+    cli.add_command(triangulate)
     cli.add_command(dem_info)
     cli.add_command(ortho)
     cli.add_command(mosaic)
