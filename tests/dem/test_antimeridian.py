@@ -7,9 +7,9 @@ constant 50 m tiles either side of 180 degrees; GDAL pixel/line (0, 0), i.e. geo
 (abs 1e-7 in GDAL's test; shared/data/MANIFEST.md). GDAL stops its image-to-ground
 iteration at 0.1 px, geoblock solves to 1e-8 px: the two differ by 3.9e-7 degrees (0.01 px),
 so GDAL's value is checked to 1e-6 degrees, as plugins/geoblock-rpc/tests/test_model.py does,
-and the truth (the backprojection at the DEM's height) to 1e-9. Before the fix, the box of the backprojected longitudes
-was the whole band from -180 to 180: a DEM holding heights beyond 180 degrees gave the scan
-its far terrain (every ray ``OUT_OF_DOMAIN`` of the RPC's 0-100 m height domain), and
+and the truth (the backprojection at the DEM's height) to 1e-9. Before the fix, the box of
+the backprojected longitudes was the whole band from -180 to 180: a DEM holding heights
+beyond 180 degrees gave the scan its far terrain (every ray ``OUT_OF_DOMAIN`` of the RPC's 0-100 m height domain), and
 ``coverage_gap`` called any DEM on the equator a cover of the scene.
 """
 
