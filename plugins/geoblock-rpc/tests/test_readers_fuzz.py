@@ -144,6 +144,9 @@ def implausibility(model: RpcModel) -> str | None:
     jac = model.partials_geodetic(rpc.long_off, rpc.lat_off, rpc.height_off)
     if not np.all(np.isfinite(jac)):
         return "its partials at its centre are not finite"
+    size = footprint_km(model)
+    if size > MAX_FOOTPRINT_KM:
+        return f"its image spans {size:.0f} km"
     g, status = model.backproject_with_status(row, col, rpc.height_off)
     if status != Status.CONVERGED:
         return f"its centre pixel backprojects with status {Status(int(status)).name}"
@@ -225,3 +228,56 @@ def test_rpcm_json_values_of_the_wrong_type_are_named(key, value, data_dir, tmp_
     mutant.write_text(json.dumps(data))
     with pytest.raises(GeoblockError, match=rf"rpc\.json: JSON field '{key}' must be"):
         plugin.geoblock_read_sensor_model(mutant, None, {})
+
+
+#: widest footprint of an image an RPC00B can describe, km (the widest pushbroom swaths are a
+#: few hundred km; the scale-swap mutants of issue 26 gave 2 000-9 700 km)
+MAX_FOOTPRINT_KM = 1000.0
+
+
+def footprint_km(model: RpcModel) -> float:
+    """Largest great-circle distance between the image's corners and centre localised at
+    HEIGHT_OFF (those that localise, with no validity domain), km."""
+    rpc = model.rpc
+    rows, cols = model.shape
+    free = RpcModel(rpc, model.shape, domain_limit=1e3, height_limit=1e3)
+    r = np.array([0.0, 0.0, rows - 1.0, rows - 1.0, (rows - 1) / 2.0])
+    c = np.array([0.0, cols - 1.0, 0.0, cols - 1.0, (cols - 1) / 2.0])
+    g, status = free.backproject_with_status(r, c, rpc.height_off)
+    lon, lat = np.radians(g.lon[status == 0]), np.radians(g.lat[status == 0])
+    cos = (np.sin(lat[:, None]) * np.sin(lat[None, :])
+           + np.cos(lat[:, None]) * np.cos(lat[None, :]) * np.cos(lon[:, None] - lon[None, :]))
+    return float(np.max(6371.0 * np.arccos(np.clip(cos, -1.0, 1.0)), initial=0.0))
+
+
+def test_scale_swaps_are_refused_or_keep_an_earthly_footprint(data_dir):
+    """Every scalar field of every shared RPC given another scalar field's value (the fuzz's
+    "other_number" mutation, e.g. LAT_SCALE <- LONG_OFF): refused with a GeoblockError, or a
+    model whose image spans at most MAX_FOOTPRINT_KM (issue 26: the rules of issue 12 let
+    2 000-14 000 km footprints through; the GSD anisotropy limit refuses them)."""
+    from geoblock_rpc.readers import read_rpc
+    from geoblock_rpc.rpc00b import _SCALARS
+
+    from .conftest import RPC_FILES
+
+    counts: Counter[str] = Counter()
+    wide = []
+    for rel in sorted(RPC_FILES):
+        rpc, shape, _ = read_rpc(data_dir / rel)
+        for field in _SCALARS:
+            for other in _SCALARS:
+                value = getattr(rpc, other)
+                if value == getattr(rpc, field):
+                    continue
+                counts["tried"] += 1
+                try:
+                    model = RpcModel(rpc.replace(**{field: value}), shape)
+                except GeoblockError:
+                    counts["refused"] += 1
+                    continue
+                size = footprint_km(model)
+                if size > MAX_FOOTPRINT_KM:
+                    wide.append(f"{rel}: {field.upper()} <- {other.upper()}: {size:.0f} km")
+    print(f"\nscale swaps: {dict(counts)}, {len(wide)} wider than {MAX_FOOTPRINT_KM:g} km")
+    assert counts["tried"] > 3000 and counts["refused"] > 0
+    assert not wide, wide[:5]

@@ -42,12 +42,21 @@ IMPOSSIBLE = {
     "height scale 1e308": ({"height_scale": 1e308}, ["HEIGHT_SCALE"]),
     "denominator term -9.9e231": (_term("line_den", 7, -9.9e231), ["LINE_DEN_COEFF_8"]),
     "numerator term 1e308": (_term("samp_num", 3, 1e308), ["SAMP_NUM_COEFF_4"]),
-    "ground centre 50 scales off": (_term("line_num", 0, 50.0), ["LINE_NUM_COEFF_1"]),
+    "image box 50 ground scales off": (_term("line_num", 0, 50.0),
+                                       ["image box centre", "map to ground nowhere"]),
+    "image box 5 ground scales off": (_term("line_num", 0, 5.0),
+                                      ["image box centre", "ground scales away", "within 3"]),
     "tiny denominator constant": ({"samp_den": np.array(_example_rpc().samp_den) * 1e-6},
-                                  ["ground box", "image box"]),
+                                  ["ground sample distance", "5.01e-07"]),
+    # another field's value in a scale (the fuzz's scale swaps): one axis 44x longer
+    "latitude scale swapped for the longitude offset": ({"lat_scale": 1.0},
+                                                        ["ground sample distance", "anisotropy"]),
+    "ground sample distance of 500 km": ({"line_num": np.array(_example_rpc().line_num) * 1e-6,
+                                          "samp_num": np.array(_example_rpc().samp_num) * 1e-6},
+                                         ["ground sample distance", "100000 m"]),
     "error bias 1e9 m": ({"err_bias": 1e9}, ["ERR_BIAS"]),
-    "validity box without the centre": ({"min_long": 8.0, "max_long": 8.1, "min_lat": 43.6,
-                                         "max_lat": 43.8}, ["validity box"]),
+    "validity box beside the ground box": ({"min_long": 8.0, "max_long": 8.1, "min_lat": 43.6,
+                                            "max_lat": 43.8}, ["does not overlap the ground box"]),
     "empty validity box": ({"min_long": 7.05, "max_long": 7.05, "min_lat": 43.6,
                             "max_lat": 43.8}, ["validity box"]),
     "latitude of the box 95": ({"min_long": 7.0, "max_long": 7.1, "min_lat": 43.6,
@@ -63,6 +72,24 @@ def test_impossible_fields_are_refused_when_the_model_is_built(case):
         RpcModel(rpc, (10000, 12000))
     for fragment in ["scene_RPC.TXT", *fragments]:
         assert fragment in str(info.value)
+
+
+#: case -> changes to the example RPC that real files have and rules of issue 12 refused
+POSSIBLE = {
+    # a validity box overlapping the ground box need not hold its centre (a crop's RPC)
+    "validity box off the centre": {"min_long": 7.06, "max_long": 7.2, "min_lat": 43.71,
+                                    "max_lat": 43.8},
+    # s2p/rpcm/CARS crop RPC: image box re-normalised to a 1024 px crop at the scene's corner,
+    # the ground box kept: the ground centre projects 8.8 crop scales from the crop centre
+    "crop re-normalised": {"line_off": 511.5, "line_scale": 512.0,
+                           "line_num": np.array(_example_rpc().line_num) * 5000.0 / 512.0
+                           + np.array(_example_rpc().line_den) * 4487.5 / 512.0},
+}
+
+
+@pytest.mark.parametrize("case", sorted(POSSIBLE))
+def test_possible_fields_are_accepted(case):
+    RpcModel(_example_rpc().replace(**POSSIBLE[case]), (1024, 12000))
 
 
 @pytest.mark.parametrize(("field", "value"), [("err_bias", math.inf), ("err_rand", math.nan),
@@ -146,7 +173,8 @@ FAR = [(1e300, 43.7, 500.0), (-1e300, 43.7, 500.0), (7.05 + 360.0 * 1e6, 43.7, 5
 
 @pytest.mark.parametrize("n", [len(FAR), PARALLEL_MIN_POINTS + 3])
 def test_points_far_outside_any_domain_are_never_converged(n):
-    model = RpcModel(RpcModel.example().rpc.replace(lat_scale=2.0), (10000, 12000))
+    rpc = RpcModel.example().rpc.replace(lat_scale=2.0, long_scale=3.3)  # GSD 44 m both ways
+    model = RpcModel(rpc, (10000, 12000))
     lon, lat, h = (np.resize(np.array(v, float), n) for v in zip(*FAR, strict=True))
     (row, col), status = model.project_with_status(lon, lat, h)
     # 367.05 is 7.05: a real longitude, inside; every other point is no place of the model

@@ -252,7 +252,7 @@ def export_rpc(
             base = base.model
         assert isinstance(base, RpcModel)  # is_rpc_based
         folded = RpcModel(rpc, model.shape, domain_limit=base.domain_limit,
-                          height_limit=base.height_limit)
+                          height_limit=base.height_limit, height_margin_m=base.height_margin_m)
         return folded, report
 
     limit = MAX_FIT_ERROR_PX if limit is None else limit

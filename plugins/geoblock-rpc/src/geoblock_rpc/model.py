@@ -19,6 +19,10 @@ from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 __all__ = ["RpcModel"]
 
 
+#: default of ``RpcModel(height_margin_m=...)``: metres of height accepted beyond the vendor's
+#: range HEIGHT_OFF -/+ HEIGHT_SCALE (see the class docstring for the measurement behind it)
+HEIGHT_MARGIN_M = 1500.0
+
 #: batches smaller than this run on the calling thread (numba's pool has a launch cost)
 PARALLEL_MIN_POINTS = 32768
 
@@ -89,10 +93,21 @@ class RpcModel(SensorModelBase):
         than ``(domain_limit - 1) / 2`` of the box size outside MIN/MAX_LONG/LAT when the file
         gives that box, get status OUT_OF_DOMAIN and NaN.
     height_limit : float
-        Vertical validity domain: ``|H| <= height_limit``, i.e. heights within
-        ``HEIGHT_OFF +/- height_limit * HEIGHT_SCALE``. Looser than the horizontal limit because
-        vendors often fit over a narrow height range (12.5 m in GDAL's test_transformer_11)
-        and the height terms extrapolate gently; GDAL checks no domain at all.
+        Vertical validity domain in normalised height: heights within
+        ``HEIGHT_OFF +/- height_limit * |HEIGHT_SCALE|`` are accepted (and those within
+        ``height_margin_m`` of the vendor's range, whichever is wider:
+        :attr:`valid_height_range`).
+    height_margin_m : float
+        Vertical validity domain in metres: heights up to this far outside the vendor's range
+        ``HEIGHT_OFF -/+ |HEIGHT_SCALE|`` are accepted (default :data:`HEIGHT_MARGIN_M`, 1500 m).
+        Vendors fit the RPC over the heights of the scene's own terrain model, often a narrow
+        range (490-660 m for shareloc's ``PHRDIMAP_P1BP--2018122638935449CP``, 26 m for GDAL's
+        test_transformer_11), while terrain at the scene's edges or a finer DEM goes a few
+        hundred metres beyond; a line of sight is straight, so the height terms extrapolate
+        gently: that RPC stays within 0.016 px (max) of CNES's physical location grid at -30 m,
+        0.017 px at 1202 m, 0.15 px at 2435 m and 0.92 px at 4900 m. A limit in normalised
+        height alone refused its 125 m (``H = -5.3``), which shareloc and GDAL localise. GDAL
+        checks no height domain at all.
     source_ids : mapping of str to str, optional
         Ids of the image the file describes, by kind (:attr:`SensorModelBase.source_ids
         <geoblock.models.base.SensorModelBase.source_ids>`): ``ossim_image_id`` of an OSSIM
@@ -121,6 +136,7 @@ class RpcModel(SensorModelBase):
         *,
         domain_limit: float = 1.5,
         height_limit: float = 5.0,
+        height_margin_m: float = HEIGHT_MARGIN_M,
         source_ids: Mapping[str, str] | None = None,
     ) -> None:
         self._source_ids = dict(source_ids or {})
@@ -139,17 +155,29 @@ class RpcModel(SensorModelBase):
             self._height_limit = float(height_limit)
         except (TypeError, ValueError):
             self._domain_limit = self._height_limit = math.nan
+        try:
+            self._height_margin_m = float(height_margin_m)
+        except (TypeError, ValueError):
+            self._height_margin_m = math.nan
         if not (1.0 <= self._domain_limit < math.inf and 1.0 <= self._height_limit < math.inf):
             raise ModelFormatError(
                 f"{rpc.source}: RpcModel domain_limit and height_limit must be finite and >= 1, "
                 f"got {domain_limit!r}, {height_limit!r}"
             )
+        if not 0.0 <= self._height_margin_m < math.inf:
+            raise ModelFormatError(f"{rpc.source}: RpcModel height_margin_m must be finite and "
+                                   f">= 0 metres, got {height_margin_m!r}")
         box = (
             (rpc.min_long, rpc.max_long, rpc.min_lat, rpc.max_lat)
             if rpc.has_validity_box
             else None
         )
-        self._prm = _kernels.pack(rpc, self._domain_limit, self._height_limit, box)
+        # the kernels test |H| against one normalised limit: the wider of the two rules
+        scale = abs(rpc.height_scale)
+        vertical = max(self._height_limit, 1.0 + self._height_margin_m / scale)
+        self._valid_heights = (rpc.height_off - vertical * scale,
+                               rpc.height_off + vertical * scale)
+        self._prm = _kernels.pack(rpc, self._domain_limit, vertical, box)
         self._coef = np.ascontiguousarray(rpc.coefficients)
 
     @classmethod
@@ -213,8 +241,23 @@ class RpcModel(SensorModelBase):
 
     @property
     def height_limit(self) -> float:
-        """Vertical validity limit on the normalised H."""
+        """Vertical validity limit on the normalised H (see also :attr:`height_margin_m`)."""
         return self._height_limit
+
+    @property
+    def height_margin_m(self) -> float:
+        """Metres of height accepted beyond the vendor's range ``HEIGHT_OFF -/+ HEIGHT_SCALE``."""
+        return self._height_margin_m
+
+    @property
+    def valid_height_range(self) -> tuple[float, float]:
+        """``(lowest, highest)`` height (metres above the ellipsoid) the model answers at.
+
+        The vendor's range widened by :attr:`height_margin_m` on each side, or
+        ``HEIGHT_OFF -/+ height_limit * |HEIGHT_SCALE|`` when that is wider; a point outside
+        gets OUT_OF_DOMAIN and NaN (projection and localisation alike).
+        """
+        return self._valid_heights
 
     @property
     def parameters(self) -> ParameterSet:
@@ -227,7 +270,8 @@ class RpcModel(SensorModelBase):
     def with_shape(self, shape: tuple[int, int]) -> Self:
         """The same RPC with another image shape."""
         return type(self)(self._rpc, shape, domain_limit=self._domain_limit,
-                          height_limit=self._height_limit, source_ids=self._source_ids)
+                          height_limit=self._height_limit,
+                          height_margin_m=self._height_margin_m, source_ids=self._source_ids)
 
     @property
     def source_ids(self) -> Mapping[str, str]:
@@ -241,6 +285,7 @@ class RpcModel(SensorModelBase):
             "shape": list(self._shape),
             "domain_limit": self._domain_limit,
             "height_limit": self._height_limit,
+            "height_margin_m": self._height_margin_m,
             "rpc": self._rpc.to_dict(),
         }
 
@@ -249,7 +294,8 @@ class RpcModel(SensorModelBase):
         try:
             rpc = Rpc00b.from_dict(data["rpc"], source="model dictionary")
             return cls(rpc, tuple(data["shape"]), domain_limit=data.get("domain_limit", 1.5),
-                       height_limit=data.get("height_limit", 5.0))
+                       height_limit=data.get("height_limit", 5.0),
+                       height_margin_m=data.get("height_margin_m", HEIGHT_MARGIN_M))
         except KeyError as exc:
             raise SerializationError(f"rpc model dictionary misses {exc}") from None
         except ModelFormatError as exc:  # the JSON reader names the file of a SerializationError

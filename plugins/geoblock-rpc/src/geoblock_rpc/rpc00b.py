@@ -47,13 +47,21 @@ MAX_PIXELS = 1e7
 #: denominator (real RPCs: below 300), and in absolute value
 MAX_COEFFICIENT = 1e10
 MAX_COEFFICIENT_ABS = 1e12
-#: largest distance, in image scales (LINE_SCALE, SAMP_SCALE), from the image centre to the
-#: projection of the ground centre: ``|NUM_COEFF_1 / DEN_COEFF_1|`` (real RPCs: up to 4.24,
-#: PlanetScope L1A; 0.04 otherwise)
-MAX_CENTRE_OFFSET = 10.0
-#: largest stretch (singular value of the normalised ground -> image Jacobian at the centre),
-#: and smallest as its inverse
-MAX_STRETCH = 1e4
+#: smallest and largest ground sample distance, metres per pixel (a microscope, a weather
+#: satellite's coarsest band), and the largest ratio of the largest to the smallest: a pixel's
+#: aspect (up to ~5, oversampled pushbroom or SAR azimuth) times 1 / cos(incidence) (3.9 at
+#: 75 degrees). Real RPCs here: 0.33 .. 5.5 m, anisotropy at most 1.42 (rpc_WV2.xml). A wrong
+#: LAT/LONG/LINE/SAMP_SCALE (another field's value) stretches one axis: 1e3 let 2 000-14 000 km
+#: footprints through; 20 none above 650 km (all 3 786 swaps of a scalar field's value into
+#: another on the 43 shared RPC files)
+MIN_GSD_M = 1e-3
+MAX_GSD_M = 1e5
+MAX_GSD_ANISOTROPY = 20.0
+#: farthest the image box (LINE/SAMP_OFF +/- LINE/SAMP_SCALE) may map to ground from the
+#: ground centre, in ground scales (LAT/LONG_SCALE), at HEIGHT_OFF: an RPC describes the image
+#: over its ground box (real RPCs: at most 1.08, rpcm's rpc_WV2.xml; a crop in either
+#: convention maps inside its scene's box)
+MAX_IMAGE_BOX_GROUND_SCALES = 3.0
 #: largest vendor accuracy, metres (NITF RPC00B's ERR_BIAS field holds at most 9999.99)
 MAX_ERROR_M = 1e5
 
@@ -192,10 +200,15 @@ class Rpc00b:
         and constant denominator terms); this checks what is physically possible: offsets on
         the Earth and within :data:`MAX_PIXELS` of the image, scales of at most a hemisphere,
         100 km of height or :data:`MAX_PIXELS`, normalised coefficients of at most
-        :data:`MAX_COEFFICIENT`, a ground centre that projects within
-        :data:`MAX_CENTRE_OFFSET` image scales of the image centre, a ground box mapped onto
-        the image box within a factor :data:`MAX_STRETCH`, a non-empty validity box holding the
-        centre, and accuracies of at most :data:`MAX_ERROR_M` metres. Every model
+        :data:`MAX_COEFFICIENT`, a ground sample distance at the ground centre within
+        :data:`MIN_GSD_M` .. :data:`MAX_GSD_M` with an anisotropy below
+        :data:`MAX_GSD_ANISOTROPY`, an image box whose centre and corners localise within
+        :data:`MAX_IMAGE_BOX_GROUND_SCALES` ground scales of the ground centre, a non-empty
+        validity box overlapping the ground box, and accuracies of at most :data:`MAX_ERROR_M`
+        metres. The image box and the ground box need not have been normalised together: the
+        RPC of a crop (s2p, rpcm, CARS) keeps the scene's ground normalisation and moves or
+        re-normalises the image box. A zero of a denominator inside the box is no rule either
+        (rpcm's SkySat L1A RPC and ASP's ``sample.RPB`` have one and are real). Every model
         (:class:`~geoblock_rpc.model.RpcModel`) and every reader calls it.
 
         Raises
@@ -230,40 +243,107 @@ class Rpc00b:
                         f"constant term of {GDAL_KEYS[den]} ({float(getattr(self, den)[0])!r}) "
                         f"or than {MAX_COEFFICIENT_ABS:g}"
                     )
-        for num, den in (("line_num", "line_den"), ("samp_num", "samp_den")):
-            d0 = float(getattr(self, den)[0])
-            centre = float(getattr(self, num)[0]) / d0
-            if abs(centre) > MAX_CENTRE_OFFSET:
-                raise ModelFormatError(
-                    f"{self.source}: {GDAL_KEYS[num]}_1 / {GDAL_KEYS[den]}_1 = {centre:.6g}: the "
-                    f"ground centre (LAT_OFF, LONG_OFF, HEIGHT_OFF) projects more than "
-                    f"{MAX_CENTRE_OFFSET:g} scales from the image centre"
-                )
-        # the normalised ground -> image Jacobian at the centre: real RPCs map their ground box
-        # onto their image box (singular values 0.93 .. 225 on the shared data)
-        jac = np.array([[(num[k] - num[0] / den[0] * den[k]) / den[0] for k in (1, 2)]
-                        for num, den in ((self.line_num, self.line_den),
-                                         (self.samp_num, self.samp_den))])
-        sv = np.linalg.svd(jac, compute_uv=False)
-        if not (sv[0] <= MAX_STRETCH and sv[1] >= 1.0 / MAX_STRETCH):
-            raise ModelFormatError(
-                f"{self.source}: the coefficients map the ground box (LAT/LONG_OFF +/- "
-                f"LAT/LONG_SCALE) onto {sv[0]:.3g} x {sv[1]:.3g} times the image box (LINE/"
-                f"SAMP_OFF +/- LINE/SAMP_SCALE), not within 1/{MAX_STRETCH:g} .. "
-                f"{MAX_STRETCH:g}: LINE/SAMP_NUM_COEFF, _DEN_COEFF or the scales are wrong"
-            )
-        box = (self.min_long, self.max_long, self.min_lat, self.max_lat)
+        self._check_gsd()
+        self._check_image_box()
         if self.has_validity_box:
-            if not (box[0] < box[1] <= box[0] + 360.0 and box[2] < box[3]):
+            w, e, s, n = (float(v) for v in (self.min_long, self.max_long, self.min_lat,
+                                             self.max_lat) if v is not None)
+            if not (w < e <= w + 360.0 and s < n):
                 raise ModelFormatError(f"{self.source}: the validity box MIN_LONG..MAX_LONG "
-                                       f"{box[0]!r}..{box[1]!r}, MIN_LAT..MAX_LAT {box[2]!r}.."
-                                       f"{box[3]!r} is empty or spans more than 360 degrees")
-            dlon = (self.long_off - box[0]) % 360.0
-            if not (dlon <= box[1] - box[0] and box[2] <= self.lat_off <= box[3]):
-                raise ModelFormatError(f"{self.source}: LONG_OFF, LAT_OFF {self.long_off!r}, "
-                                       f"{self.lat_off!r} lie outside the validity box "
-                                       f"MIN_LONG..MAX_LONG {box[0]!r}..{box[1]!r}, "
-                                       f"MIN_LAT..MAX_LAT {box[2]!r}..{box[3]!r}")
+                                       f"{w!r}..{e!r}, MIN_LAT..MAX_LAT {s!r}..{n!r} is empty "
+                                       "or spans more than 360 degrees")
+            # the validity box and the ground box (LONG/LAT_OFF +/- LONG/LAT_SCALE) overlap
+            dlon = abs((0.5 * (w + e) - self.long_off + 180.0) % 360.0 - 180.0)
+            dlat = abs(0.5 * (s + n) - self.lat_off)
+            if (dlon > 0.5 * (e - w) + abs(self.long_scale)
+                    or dlat > 0.5 * (n - s) + abs(self.lat_scale)):
+                raise ModelFormatError(
+                    f"{self.source}: the validity box MIN_LONG..MAX_LONG {w!r}..{e!r}, "
+                    f"MIN_LAT..MAX_LAT {s!r}..{n!r} does not overlap the ground box LONG_OFF "
+                    f"{self.long_off!r} +/- LONG_SCALE {self.long_scale!r}, LAT_OFF "
+                    f"{self.lat_off!r} +/- LAT_SCALE {self.lat_scale!r}")
+
+    def ground_sample_distance(self) -> tuple[float, float]:
+        """The smallest and largest ground sample distance at the ground centre, metres/pixel.
+
+        The singular values' inverses of the ground -> image Jacobian (pixels per metre east and
+        north on the ellipsoid at ``LONG_OFF, LAT_OFF, HEIGHT_OFF``). The ground normalisation
+        is kept by crops (both conventions), so a crop's GSD is its scene's.
+
+        Returns
+        -------
+        (float, float)
+            Metres per pixel; ``inf`` where the Jacobian is singular, NaN where not finite.
+        """
+        jac = np.empty((2, 2))
+        for i, (num, den, scale) in enumerate(((self.line_num, self.line_den, self.line_scale),
+                                               (self.samp_num, self.samp_den, self.samp_scale))):
+            ratio = num[0] / den[0]
+            # d(ratio)/dL, d(ratio)/dP at L = P = H = 0, in pixels per degree
+            jac[i, 0] = (num[1] - ratio * den[1]) / den[0] * scale / self.long_scale
+            jac[i, 1] = (num[2] - ratio * den[2]) / den[0] * scale / self.lat_scale
+        # metres per degree east and north on the WGS84 ellipsoid at the ground centre
+        a, e2 = 6378137.0, 6.69437999014e-3
+        s2 = math.sin(math.radians(self.lat_off)) ** 2
+        n = a / math.sqrt(1.0 - e2 * s2)
+        m = a * (1.0 - e2) / (1.0 - e2 * s2) ** 1.5
+        east = math.radians(1.0) * (n + self.height_off) * math.cos(math.radians(self.lat_off))
+        north = math.radians(1.0) * (m + self.height_off)
+        with np.errstate(all="ignore"):
+            jac = jac / np.array([east, north])
+            if not np.all(np.isfinite(jac)):
+                return math.nan, math.nan
+            sv = np.linalg.svd(jac, compute_uv=False)
+            return float(1.0 / sv[0]), float(1.0 / sv[1])
+
+    def _check_gsd(self) -> None:
+        small, large = self.ground_sample_distance()
+        if not (MIN_GSD_M <= small and large <= MAX_GSD_M
+                and large <= MAX_GSD_ANISOTROPY * small):
+            raise ModelFormatError(
+                f"{self.source}: the coefficients and scales give a ground sample distance of "
+                f"{small:.3g} .. {large:.3g} m per pixel at the ground centre, not within "
+                f"{MIN_GSD_M:g} .. {MAX_GSD_M:g} m with an anisotropy below "
+                f"{MAX_GSD_ANISOTROPY:g}: LINE/SAMP_NUM_COEFF, _DEN_COEFF or the LINE/SAMP/LAT/"
+                f"LONG_SCALE are wrong")
+
+    def _check_image_box(self) -> None:
+        """The centre and corners of the image box localise, at HEIGHT_OFF, within
+        :data:`MAX_IMAGE_BOX_GROUND_SCALES` ground scales of the ground centre.
+
+        A point where the localisation does not converge is left out (a zero of a denominator
+        leaves pixels of real RPCs without a ground point: ASP's ``sample.RPB``), but one of the
+        five at least must converge.
+        """
+        from geoblock_rpc import _kernels  # numba: imported when a model is checked
+
+        limit = MAX_IMAGE_BOX_GROUND_SCALES
+        prm = _kernels.pack(self, 1e6, 1e6, None)
+        u = np.array([0.0, -1.0, -1.0, 1.0, 1.0])
+        v = np.array([0.0, -1.0, 1.0, -1.0, 1.0])
+        row = self.line_off + u * abs(self.line_scale)
+        col = self.samp_off + v * abs(self.samp_scale)
+        h = np.full(5, self.height_off)
+        lon, lat = np.empty(5), np.empty(5)
+        status = np.empty(5, np.uint8)
+        _kernels.localise_serial(row, col, h, prm, np.ascontiguousarray(self.coefficients),
+                                 1e-6, 1e-3, 60, lon, lat, status)
+        found = status == 0
+        with np.errstate(invalid="ignore"):
+            dist = np.maximum(np.abs(wrap_longitude(lon - self.long_off) / self.long_scale),
+                              np.abs((lat - self.lat_off) / self.lat_scale))
+        far = found & ~(dist <= limit)
+        if np.any(far) or not np.any(found):
+            k = int(np.argmax(far)) if np.any(far) else 0
+            where = "centre" if k == 0 else "corner"
+            maps = (f"maps to ground {float(dist[k]):.3g} ground scales away" if np.any(far)
+                    else "and its corners map to ground nowhere (the localisation does not "
+                         "converge)")
+            raise ModelFormatError(
+                f"{self.source}: the image box {where} (row {row[k]:g}, col {col[k]:g}: LINE/"
+                f"SAMP_OFF +/- LINE/SAMP_SCALE) {maps}, not within {limit:g} ground scales "
+                f"(LAT/LONG_SCALE) of the ground centre (LAT_OFF, LONG_OFF) at HEIGHT_OFF: the "
+                f"offsets, the scales or the coefficients are wrong")
 
     # ------------------------------------------------------------------ conversions
     @property
