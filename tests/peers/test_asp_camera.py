@@ -90,11 +90,11 @@ def test_dg_create_camera_triangulation(asp, dg1):
         assert np.hypot(ic.row - m[0], ic.col - m[1]) < 4.0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 item 8: geoblock.triangulate does not exist yet")
 def test_dg_create_camera_triangulate_api(asp, dg1):
     """The same ASP assertion (miss < 5 m) through ``geoblock.triangulate`` (issue 26 item 8)."""
     dg2 = geoblock.open_model(asp / "dg_example2.xml")
-    result = geoblock.triangulate([dg1, dg2], [(10702.0, 27728.0), (10366.0, 30090.0)])  # type: ignore[attr-defined]
+    result = geoblock.triangulate({"1": dg1, "2": dg2}, ["p", "p"], ["1", "2"],
+                                  [10702.0, 10366.0], [27728.0, 30090.0])
     assert float(np.max(np.asarray(result.miss_m))) < 5.0
 
 

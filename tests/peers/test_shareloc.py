@@ -130,8 +130,6 @@ def test_rpc_dimap_v2(sl):
 PHRDIMAP_TN = "rpc/PHRDIMAP_P1BP--2018122638935449CP.XML"
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 item 7: heights outside an RPC's stated range "
-                                       "(125 m vs 490-660 m, normalised -5.3) give NaN")
 def test_rpc_phrdimap_round_trip_at_125m(sl):
     """tests/geomodels/test_rpc.py l.251-266 (test_rpc_phrdimap): the DIMAP v1.4 RFM, direct at
     (row 200, col 600, h 125) then inverse returns the pixel within 2e-2 px. (A round trip,
@@ -471,12 +469,15 @@ def test_triangulation_readme_point(sl):
     np.testing.assert_allclose(x, README_ECEF, atol=1e-3, rtol=0)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 item 8: geoblock.triangulate does not exist yet")
 def test_triangulation_readme_point_with_triangulate(sl):
     """The same README point through ``geoblock.triangulate`` (issue 26 item 8), abs 1e-3 m."""
+    from geoblock import coords
+
     left, right = _open(sl / f"rpc/{NICE_L}.geom"), _open(sl / f"rpc/{NICE_R}.geom")
-    result = geoblock.triangulate([left, right], [LEFT_PIX, RIGHT_PIX])  # type: ignore[attr-defined]
-    ecef = np.asarray(getattr(result, "ecef", result), float).reshape(-1)[:3]
+    result = geoblock.triangulate({"l": left, "r": right}, ["p", "p"], ["l", "r"],
+                                  [LEFT_PIX[0], RIGHT_PIX[0]], [LEFT_PIX[1], RIGHT_PIX[1]])
+    e = coords.geodetic_to_ecef(result.lon, result.lat, result.h)
+    ecef = np.array([np.ravel(e.x)[0], np.ravel(e.y)[0], np.ravel(e.z)[0]])
     np.testing.assert_allclose(ecef, README_ECEF, atol=1e-3, rtol=0)
 
 
