@@ -37,6 +37,17 @@ ECEF = LinescanModel.example(frame="ecef")
 #: every parameter non-zero: 1-2 m position biases, 0.1-0.2 m/s drifts, 10-20 urad, 1-2 urad/s
 VALUES = np.linspace(1.0, 2.0, 12) * np.repeat([1.0, 0.1, 1e-5, 1e-6], 3)
 CORRECTED = ORBITAL.with_parameters(VALUES)
+
+
+def reverse() -> LinescanModel:
+    """The example scanned backwards (DigitalGlobe SCANDIRECTION Reverse): the times fall as
+    the row rises; row r sees what the forward example's row (rows - 1 - r) sees. (A function:
+    a refusal fails the tests that use it, not the module's collection.)"""
+    lt = ORBITAL.line_times
+    return ORBITAL.replace(line_times=LineTimes(lt.reference_row, lt.reference_time_s,
+                                                -lt.line_period_s))
+
+
 GSD = 2.5  # metres, the example's nominal ground sample distance
 ALTITUDE = 700e3
 
@@ -45,7 +56,8 @@ ALTITUDE = 700e3
 class TestLinescanContract(SensorModelContract):
     parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
 
-    @pytest.fixture(params=["orbital", "ecef", "corrected", "dg-subset"])
+    @pytest.fixture(params=["orbital", "ecef", "corrected", "dg-subset", "reverse",
+                            "reverse-corrected"])
     def model(self, request):
         if request.param == "dg-subset":
             # a restricted set with finite sigmas, as the DG adjustment builds
@@ -53,6 +65,9 @@ class TestLinescanContract(SensorModelContract):
             params = ParameterSet(names, [3.0, -2.0, 1.0, 0.5], ("m", "m", "m", "m/s"),
                                   sigmas=[10.0, 10.0, 10.0, 1.0])
             return ORBITAL.replace(parameters=params)
+        if request.param.startswith("reverse"):
+            model = reverse()
+            return model if request.param == "reverse" else model.with_parameters(VALUES)
         return {"orbital": ORBITAL, "ecef": ECEF, "corrected": CORRECTED}[request.param]
 
 
@@ -61,8 +76,10 @@ def test_registered_and_listed():
 
 
 # ============================================================================ round trips
-@pytest.mark.parametrize("model", [ORBITAL, CORRECTED], ids=["orbital", "corrected"])
-def test_image_ground_image_round_trip(model):
+@pytest.mark.parametrize("name", ["orbital", "corrected", "reverse"])
+def test_image_ground_image_round_trip(name):
+    model = reverse() if name == "reverse" else {"orbital": ORBITAL, "corrected": CORRECTED}[name]
+
     @FAST
     @given(point=image_points(model), h=heights(model))
     def round_trip(point, h):
@@ -74,8 +91,10 @@ def test_image_ground_image_round_trip(model):
     round_trip()
 
 
-@pytest.mark.parametrize("model", [ORBITAL, ECEF], ids=["orbital", "ecef"])
-def test_ground_image_ground_round_trip(model):
+@pytest.mark.parametrize("name", ["orbital", "ecef", "reverse"])
+def test_ground_image_ground_round_trip(name):
+    model = reverse() if name == "reverse" else {"orbital": ORBITAL, "ecef": ECEF}[name]
+
     @FAST
     @given(ground=ground_points(model))
     def round_trip(ground):
@@ -265,6 +284,48 @@ def test_line_times():
     np.testing.assert_allclose(lt.row(lt.time([-0.5, 3.25])), [-0.5, 3.25])
 
 
+def test_reverse_line_times_fall_as_the_row_rises():
+    lt = LineTimes(reference_row=0.0, reference_time_s=0.0, line_period_s=-0.5)
+    assert lt.reverse and lt.period_magnitude_s == 0.5
+    assert float(lt.time(4.0)) == -2.0
+    assert lt.span(0.0, 4.0) == (-2.0, 0.0)
+    np.testing.assert_allclose(lt.row(lt.time([-0.5, 3.25])), [-0.5, 3.25])
+    assert not LineTimes(0.0, 0.0, 0.5).reverse
+
+
+def test_a_reverse_scan_sees_the_forward_scan_flipped():
+    """Row r of the reverse-scanned example is exposed when the forward example's row
+    (rows - 1 - r) is: same ground, both ways, to float64 precision."""
+    rows, cols = ORBITAL.shape
+    backwards = reverse()
+    rr, cc = np.meshgrid(np.linspace(-0.5, rows - 0.5, 15), np.linspace(-0.5, cols - 0.5, 15),
+                         indexing="ij")
+    for h in (-300.0, 2500.0):
+        g = backwards.backproject(rr, cc, h)
+        gf = ORBITAL.backproject(rows - 1 - rr, cc, h)
+        assert np.max(np.abs(g.lon - gf.lon)) < 1e-12 and np.max(np.abs(g.lat - gf.lat)) < 1e-12
+        p, status = backwards.project_with_status(g.lon, g.lat, h)
+        assert np.all(status == Status.CONVERGED)
+        assert np.max(np.abs(p.row - rr)) < 1e-6 and np.max(np.abs(p.col - cc)) < 1e-6
+
+
+def test_a_reverse_scan_has_the_forward_scans_presets_and_partials():
+    """The preset sigmas scale with the image's duration, |period| x rows, whatever the scan
+    direction; the row partials change sign with the period."""
+    backwards = reverse()
+    for preset in ("dg", "physical"):
+        fwd = ORBITAL.with_parameter_set(preset, accuracy_m=10.0).parameters.sigmas
+        rev = backwards.with_parameter_set(preset, accuracy_m=10.0).parameters.sigmas
+        assert np.all(rev > 0)
+        np.testing.assert_allclose(rev, fwd, rtol=1e-9)
+    rows, cols = ORBITAL.shape
+    g = ORBITAL.backproject(100.0, 300.0, 50.0)
+    gr = backwards.backproject(rows - 1 - 100.0, 300.0, 50.0)
+    jf, jr = ORBITAL.partials_ground(*g), backwards.partials_ground(*gr)
+    np.testing.assert_allclose(jr[..., 0, :], -jf[..., 0, :], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(jr[..., 1, :], jf[..., 1, :], rtol=1e-6, atol=1e-12)
+
+
 # ============================================================================ parameters
 def _centre_ground(model):
     rows, cols = model.shape
@@ -369,7 +430,7 @@ def test_from_dict_errors_are_serialization_errors():
     with pytest.raises(SerializationError, match="ephemeris"):
         LinescanModel.from_dict(data)
     data = ORBITAL.to_dict()
-    data["line_times"]["line_period_s"] = -1.0
+    data["line_times"]["line_period_s"] = 0.0  # (a negative period is a reverse scan)
     with pytest.raises(SerializationError, match="line_period_s"):
         LinescanModel.from_dict(data)
 

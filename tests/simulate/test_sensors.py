@@ -92,6 +92,34 @@ def test_gsd_and_line_period_as_requested(spec):
         assert model.line_times.line_period_s == 1.5e-3
 
 
+@pytest.mark.parametrize("change", [{"reverse_scan": True},
+                                    {"line_period_s": -QUICKBIRD_SMALL.line_period}],
+                         ids=["reverse_scan", "negative-period"])
+def test_a_reverse_scanned_scene_is_the_forward_scene_flipped(change):
+    """A reverse scan (SCANDIRECTION Reverse): row r is exposed when the forward scene's row
+    rows - 1 - r is; same on-board error, same preset sigmas; the on-board model (a
+    different orbit and attitude) still solves every point."""
+    fwd = SIMS["quickbird-small"]
+    rev = simulate_sensor(QUICKBIRD_SMALL.replace(**change))
+    assert rev.spec.line_period == -fwd.spec.line_period < 0
+    assert rev.true_model.line_times.line_period_s == rev.spec.line_period
+    rows, cols = fwd.true_model.shape
+    rr, cc = np.meshgrid(np.linspace(-0.5, rows - 0.5, 12), np.linspace(-0.5, cols - 0.5, 12),
+                         indexing="ij")
+    g = rev.true_model.backproject(rr, cc, 500.0)
+    gf = fwd.true_model.backproject(rows - 1 - rr, cc, 500.0)
+    assert np.max(np.abs(g.lon - gf.lon)) < 1e-12 and np.max(np.abs(g.lat - gf.lat)) < 1e-12
+    for model in (rev.true_model, rev.onboard_model):
+        p = model.project(g.lon, g.lat, 500.0)
+        assert np.all(np.isfinite(p.row))
+    p = rev.true_model.project(g.lon, g.lat, 500.0)
+    assert np.max(np.abs(p.row - rr)) < 1e-6 and np.max(np.abs(p.col - cc)) < 1e-6
+    assert rev.onboard_error().rmse == pytest.approx(fwd.onboard_error().rmse, rel=1e-6)
+    np.testing.assert_allclose(rev.onboard_model.with_parameter_set("dg").parameters.sigmas,
+                               fwd.onboard_model.with_parameter_set("dg").parameters.sigmas,
+                               rtol=1e-9)
+
+
 def test_orbit_is_circular_keplerian_in_inertial_space():
     sim = SIMS["spot5-strip1-small"]
     eph = sim.true_model.ephemeris
@@ -177,6 +205,7 @@ def test_full_size_spot5_strip_builds_and_centres():
     ({"gsd_m": 0.0}, "gsd_m"),
     ({"onboard_drift_share": 1.0}, "onboard_drift_share"),
     ({"incidence_deg": 75.0}, "incidence_deg"),
+    ({"line_period_s": 0.0}, "line_period_s"),
 ])
 def test_bad_specs_raise_naming_the_field(change, field):
     with pytest.raises(GeoblockError, match=field):

@@ -108,7 +108,11 @@ class OrbitSensorSpec:
         Pitch about the across-track axis, degrees; positive looks forward.
     line_period_s : float, optional
         Seconds per row; default ``gsd_m`` / ground speed of the nadir point (square pixels
-        at nadir).
+        at nadir). Negative for a reverse scan (DigitalGlobe ``SCANDIRECTION Reverse``: the
+        times fall as the row rises, row 0 is the last line acquired).
+    reverse_scan : bool
+        Scan backwards: the line period in use is ``-abs(line_period)`` (with the default
+        period too). A negative ``line_period_s`` is a reverse scan without this flag.
     jitter_amplitude_rad : float
         Amplitude of the sinusoidal attitude jitter on roll, pitch and yaw, radians.
     jitter_frequency_hz : float
@@ -143,6 +147,7 @@ class OrbitSensorSpec:
     pitch_deg: float = 0.0
     centre_h: float = 0.0
     line_period_s: float | None = None
+    reverse_scan: bool = False
     jitter_amplitude_rad: float = 0.0
     jitter_frequency_hz: float = 1.0
     onboard_rmse_m: float = 20.0
@@ -166,7 +171,9 @@ class OrbitSensorSpec:
              f"an orbit inclined {self.inclination_deg} deg does not fly over |lat| >= {lim}")
         need(self.gsd_m > 0, "gsd_m", "must be > 0")
         need(len(self.shape) == 2 and min(self.shape) >= 2, "shape", "must be (rows, cols) >= 2")
-        need(self.line_period_s is None or self.line_period_s > 0, "line_period_s", "must be > 0")
+        need(self.line_period_s is None or (math.isfinite(self.line_period_s)
+                                            and self.line_period_s != 0), "line_period_s",
+             "must be finite and non-zero (negative: a reverse scan)")
         need(self.incidence_deg is None or abs(self.incidence_deg) < 60, "incidence_deg",
              "must be within +-60 degrees")
         need(abs(self.roll_deg) < 45 and abs(self.pitch_deg) < 45, "roll_deg",
@@ -209,10 +216,10 @@ class OrbitSensorSpec:
 
     @property
     def line_period(self) -> float:
-        """The line period in use, seconds."""
-        if self.line_period_s is not None:
-            return float(self.line_period_s)
-        return self.gsd_m / self.ground_speed_m_s
+        """The line period in use, seconds: negative for a reverse scan."""
+        period = (float(self.line_period_s) if self.line_period_s is not None
+                  else self.gsd_m / self.ground_speed_m_s)
+        return -abs(period) if self.reverse_scan else period
 
     @property
     def nominal_roll_rad(self) -> float:
@@ -314,8 +321,8 @@ def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: floa
            phases: np.ndarray, errors: OnboardErrors | None) -> LinescanModel:
     """The model of the spec with the nadir at t = 0 over (nadir_lon, nadir_lat)."""
     rows, cols = spec.shape
-    period = spec.line_period
-    half = 0.5 * rows * period + spec.margin_s
+    period = spec.line_period  # negative for a reverse scan
+    half = 0.5 * rows * abs(period) + spec.margin_s
     n_eph = math.ceil(half / spec.ephemeris_step_s)
     t_eph = spec.ephemeris_step_s * np.arange(-n_eph, n_eph + 1, dtype=np.float64)
     u0, raan = _orbit_elements(spec, nadir_lon, nadir_lat)
@@ -419,7 +426,7 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
     pos_dir = rng.normal(size=3) * [1.0, 1.0, 0.3]
     att_dir = rng.normal(size=3) * np.array([1.0, 1.0, 0.3]) / alt
     drift_sign = rng.choice([-1.0, 1.0], size=2)
-    half_s = 0.5 * spec.shape[0] * spec.line_period
+    half_s = 0.5 * spec.shape[0] * abs(spec.line_period)
     shape_bias = OnboardErrors(pos_dir, zero, att_dir, zero)
     # along-track position drift plus a pitch drift, 1 m at the image's ends
     shape_drift = OnboardErrors(zero, np.array([drift_sign[0], 0.0, 0.0]) * 0.5 / half_s, zero,

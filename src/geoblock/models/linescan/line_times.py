@@ -16,7 +16,14 @@ __all__ = ["LineTimes"]
 
 @dataclass(frozen=True)
 class LineTimes:
-    """Exposure time of each row: a constant line period.
+    """Exposure time of each row: a constant line period, of either sign.
+
+    A forward scan has ``line_period_s > 0`` (row 0 is exposed first); a reverse scan
+    (DigitalGlobe ``SCANDIRECTION Reverse``: agile satellites collect in both directions)
+    has ``line_period_s < 0``: the times fall as the row rises and row 0 is the last line
+    acquired. Nothing else changes: ``time`` and ``row`` are the same linear map, and the
+    model's searches and tolerances use :attr:`period_magnitude_s` and the sorted time span
+    (:meth:`span`).
 
     Parameters
     ----------
@@ -25,7 +32,7 @@ class LineTimes:
     reference_time_s : float
         Seconds since the epoch.
     line_period_s : float
-        Seconds per row, > 0.
+        Seconds per row, non-zero: > 0 for a forward scan, < 0 for a reverse scan.
     """
 
     reference_row: float
@@ -42,8 +49,26 @@ class LineTimes:
             if not np.isfinite(value):
                 raise fail(f"LineTimes.{name}", f"must be finite, got {value!r}")
             object.__setattr__(self, name, value)
-        if not self.line_period_s > 0:
-            raise fail("LineTimes.line_period_s", f"must be > 0, got {self.line_period_s!r}")
+        if self.line_period_s == 0:
+            raise fail("LineTimes.line_period_s",
+                       "must be non-zero (> 0 for a forward scan, < 0 for a reverse scan), "
+                       "got 0.0")
+
+    @property
+    def reverse(self) -> bool:
+        """Whether the times fall as the row rises (a reverse scan)."""
+        return self.line_period_s < 0
+
+    @property
+    def period_magnitude_s(self) -> float:
+        """``abs(line_period_s)``: seconds between consecutive rows, > 0."""
+        return abs(self.line_period_s)
+
+    def span(self, first_row: float, last_row: float) -> tuple[float, float]:
+        """``(earliest, latest)`` exposure time of the rows from ``first_row`` to
+        ``last_row``, seconds since the epoch (sorted, whatever the scan direction)."""
+        t0, t1 = (float(v) for v in self.time(np.array([first_row, last_row], np.float64)))
+        return (t0, t1) if t0 <= t1 else (t1, t0)
 
     def time(self, row: ArrayLike) -> Float64Array:
         """Seconds since the epoch at which ``row`` is exposed."""

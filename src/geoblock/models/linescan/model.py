@@ -465,10 +465,10 @@ class LinescanModel(SensorModelBase):
         """Time bracket of the ground -> image search, seconds."""
         rows = self._shape[0]
         margin = max(self.search_margin_fraction * rows,
-                     self.search_margin_s / self._line_times.line_period_s)
+                     self.search_margin_s / self._line_times.period_magnitude_s)
         first, _, last, _ = image_domain(self._shape)  # the image's outer edges, rows
-        t0, t1 = sorted(float(v) for v in self._line_times.time(
-            np.array([first - margin, last + margin])))
+        # either scan direction: the span is sorted (a reverse scan's row 0 is its latest)
+        t0, t1 = self._line_times.span(first - margin, last + margin)
         e0, e1 = self._ephemeris.valid_span_s
         a0, a1 = self._attitude.valid_span_s
         return max(t0, e0, a0), min(t1, e1, a1)
@@ -557,8 +557,8 @@ class LinescanModel(SensorModelBase):
         col1 = np.full(idx.size, np.nan)
         dz1 = np.full(idx.size, np.nan)
         gi, hi_ = g[idx], h[idx]
-        tol = self.search_tolerance_lines * self._line_times.line_period_s
-        stall = self.search_stall_lines * self._line_times.line_period_s
+        tol = self.search_tolerance_lines * self._line_times.period_magnitude_s
+        stall = self.search_stall_lines * self._line_times.period_magnitude_s
         status[idx] = Status.MAX_ITERATIONS
 
         def finish(fin: np.ndarray, good: np.ndarray) -> None:
@@ -869,7 +869,7 @@ def _geometry_scales(model: LinescanModel) -> tuple[float, float, float, float]:
     lever arm) and from the centre to the farther end of the centre row (metres)."""
     rows, cols = model.shape
     free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
-    half_t = 0.5 * rows * model.line_times.line_period_s
+    half_t = 0.5 * rows * model.line_times.period_magnitude_s  # either scan direction
     centre = (0.5 * (rows - 1), 0.5 * (cols - 1))
     g = free.backproject_ecef([centre[0]] * 3, [centre[1], 0.0, cols - 1.0], 0.0)
     ground = np.stack([np.asarray(c) for c in g], axis=-1)  # (3, 3)
