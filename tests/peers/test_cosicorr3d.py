@@ -47,8 +47,6 @@ def test_rsm_generation_spot(ds, name):
     _check_physical(model)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 item 2: reverse-scanned DigitalGlobe products "
-                                       "are refused (LineTimes.line_period_s must be > 0)")
 def test_rsm_generation_wv1_reverse_scan(ds):
     """tests/test_geoRSM.py l.18-34 (test_rsm_generation): COSI-Corr3D builds its cDigitalGlobe
     model from WV1.XML, a reverse-scanned product (SCANDIRECTION Reverse). geoblock: the

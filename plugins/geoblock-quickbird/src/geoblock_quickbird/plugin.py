@@ -7,7 +7,7 @@ import geoblock
 #: the model names this plugin's reader answers for (``None``: no model named)
 MODEL_NAMES = (None, "dg-rigorous", "quickbird", "worldview")
 #: the reader's options (:func:`geoblock_quickbird.model.dg_model`'s keywords)
-OPTIONS = ("parameters", "accuracy_m", "height_range", "corrections", "tile")
+OPTIONS = ("parameters", "accuracy_m", "height_range", "corrections", "tile", "check_rpb")
 
 
 @geoblock.hookimpl
