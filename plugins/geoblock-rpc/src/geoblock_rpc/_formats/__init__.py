@@ -1,0 +1,1 @@
+"""The parsers of :mod:`geoblock_rpc.readers`, one module per format family (private)."""
