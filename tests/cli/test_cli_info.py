@@ -31,7 +31,7 @@ def test_info_json(runner, cli, model_path, affine):
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert data["model"] == "synthetic-affine"
-    assert data["shape"] == {"rows": 1000, "cols": 1200}
+    assert data["shape"] == {"rows": 1000, "cols": 1200, "stated": True}
     assert data["height_range"] == [-500.0, 3000.0]
     params = {p["name"]: p for p in data["parameters"]}
     assert list(params) == list(affine.parameters.names)
@@ -58,7 +58,8 @@ def test_info_height_and_model_option(runner, cli, tmp_path):
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert data["model"] == "synthetic-pushbroom"
-    assert data["shape"] == {"rows": model.shape[0], "cols": model.shape[1]}
+    assert data["shape"] == {"rows": model.shape[0], "cols": model.shape[1],
+                             "stated": True}
     assert data["footprint"]["h"] == 0.0 and data["gsd"]["h"] == 0.0
     assert data["gsd"]["mean_m"] > 0
     assert [p["name"] for p in data["parameters"]] == list(model.parameters.names)

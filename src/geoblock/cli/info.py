@@ -45,7 +45,9 @@ def model_info(model: SensorModel, h: float | None = None) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``model``, ``shape`` ``{rows, cols}``, ``height_range``, ``parameters`` (name, value,
+        ``model``, ``shape`` ``{rows, cols, stated}`` (``stated`` False when the model's file
+        gives no image size and the shape is the extent the model was fitted over),
+        ``height_range``, ``parameters`` (name, value,
         unit, sigma - ``None`` for free -, adjustable), ``footprint`` (``h`` and the four
         outer pixel-edge corners with row, col, lon, lat, clockwise from top-left) and
         ``gsd`` (``h``, ``row_m``, ``col_m``, ``mean_m``: metres between neighbouring pixel
@@ -75,7 +77,8 @@ def model_info(model: SensorModel, h: float | None = None) -> dict[str, Any]:
 
     return {
         "model": model.name,
-        "shape": {"rows": rows, "cols": cols},
+        "shape": {"rows": rows, "cols": cols,
+                  "stated": bool(getattr(model, "shape_stated", True))},
         "height_range": [h_min, h_max],
         "parameters": [
             {
@@ -124,7 +127,9 @@ def format_info(data: dict[str, Any]) -> str:
     lines = [
         f"path:          {data['path']}",
         f"model:         {data['model']}",
-        f"shape:         {shape['rows']} rows x {shape['cols']} cols",
+        f"shape:         {shape['rows']} rows x {shape['cols']} cols"
+        + ("" if shape.get("stated", True) else
+           " (not stated by the file: the extent the model was fitted over)"),
         f"height range:  {h_min:g} .. {h_max:g} m (ellipsoidal)",
         f"parameters:    {len(params)} ({n_adj} adjustable)",
     ]

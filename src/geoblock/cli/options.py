@@ -194,6 +194,13 @@ def model_for_image_arg(model: SensorModel, image: Any,
         raise click.UsageError("give --crop-offset or --no-crop, not both")
     out = model_for_image(model, image, crop_offset=crop_offset or None, crop=not no_crop,
                           names=CLI_NAMES, force=force)
+    if out is not model and not isinstance(out, CroppedModel):  # a size the file did not state
+        rows, cols = out.shape
+        scene_rows, scene_cols = model.shape
+        name = getattr(image, "path", image)
+        click.echo(f"{name}: {rows} x {cols} px, taken as the whole scene (the model's file "
+                   f"states no image size; its fitted extent is {scene_rows} x {scene_cols} px)",
+                   err=True)
     if isinstance(out, CroppedModel) and out is not model:
         rows, cols = out.shape
         scene_rows, scene_cols = model.shape

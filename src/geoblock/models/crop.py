@@ -15,6 +15,11 @@ keeps from such a source; read by
 <geoblock.io.images.ImageSource.crop_offset>`); an image whose shape differs from the
 model's with no crop information is refused with both shapes and what to pass, never
 silently placed at the scene's top-left.
+
+One exception: a model whose file states no image size (``shape_stated`` False, e.g. an RPC
+text file or a DIMAP ``RPC_*.XML`` copied without its ``DIM_*.XML``: its ``shape`` is then the
+extent the vendor fitted the model over, not the image's) takes an image within
+:data:`UNSTATED_SHAPE_TOLERANCE` of that extent on both axes as its whole scene.
 """
 
 from __future__ import annotations
@@ -33,6 +38,15 @@ __all__ = ["CropError", "CroppedModel", "model_for_image"]
 
 #: How far (pixels) a crop may stick out of its scene (fractional offsets, rounding).
 FIT_TOLERANCE_PX = 0.5
+
+#: Relative difference per axis between an image's size and the fitted extent of a model that
+#: states no image size (``shape_stated`` False) within which the image is taken as the whole
+#: scene. Vendors fit an RPC over the image plus a margin: the fitted extent
+#: ``ceil(OFF + SCALE + 0.5)`` differs from the image by 1.1 % (rows) and 0.07 % (columns) for
+#: the Pleiades Ventoux scene (42248 x 39208 vs 41801 x 39182 px), and by 1.4 % to 3.6 % for
+#: the WorldView-1/2 products of ../shared/data (their ISDs state both); a crop of less than
+#: 90 % of the scene still needs its offset.
+UNSTATED_SHAPE_TOLERANCE = 0.1
 
 
 def _offset(value: Any, what: str = "offset") -> tuple[float, float]:
@@ -234,6 +248,22 @@ def _check_ids(model: SensorModel, source: Any, force_name: str) -> None:
             )
 
 
+def _fitted(model: SensorModel) -> str:
+    """`` (its fitted extent: ...)`` for a model whose file states no image size."""
+    if getattr(model, "shape_stated", True):
+        return ""
+    return (" (the extent it was fitted over: its file states no image size, and an image "
+            f"within {UNSTATED_SHAPE_TOLERANCE:.0%} of it is taken as the whole scene)")
+
+
+def _whole_scene_of_unstated(model: SensorModel, shape: tuple[int, ...]) -> bool:
+    """Whether ``shape`` is taken as the whole scene of a model that states no image size."""
+    if getattr(model, "shape_stated", True) or not callable(getattr(model, "with_shape", None)):
+        return False
+    return all(abs(n - fitted) <= UNSTATED_SHAPE_TOLERANCE * fitted
+               for n, fitted in zip(shape, model.shape, strict=True))
+
+
 def model_for_image(
     model: SensorModel,
     image: Any,
@@ -264,7 +294,11 @@ def model_for_image(
        (e.g. an RPC read with ``crop_from_geotransform=True``) and is used as it is;
        otherwise the image must lie inside ``model``'s scene at that offset and the result
        is a :class:`CroppedModel`.
-    4. No crop information: the shapes must be equal.
+    4. No crop information: the shapes must be equal, or, for a model whose file states no
+       image size (``model.shape_stated`` False, and the model offers ``with_shape``), the
+       image's size must lie within :data:`UNSTATED_SHAPE_TOLERANCE` of the model's fitted
+       extent on both axes: the result is ``model.with_shape(image.shape)``, the image being
+       the whole scene (pixel ``(r, c)`` of both).
 
     Parameters
     ----------
@@ -322,9 +356,12 @@ def model_for_image(
     else:
         if shape == scene:
             return model
+        if _whole_scene_of_unstated(model, shape):
+            return model.with_shape(shape)  # type: ignore[attr-defined]
         raise CropError(
             f"{source.path}: the image is {shape[0]} x {shape[1]} px but the model "
-            f"({model.name!r}) describes a {scene[0]} x {scene[1]} px scene, and nothing says "
+            f"({model.name!r}) describes a {scene[0]} x {scene[1]} px scene{_fitted(model)}, "
+            "and nothing says "
             f"where the image lies in it (no pixel-unit geotransform): if the image is a crop "
             f"of the scene, pass {say['crop_offset']} (the scene pixel of its first pixel); "
             f"to use the model's pixels as they are, pass {say['no_crop']}"

@@ -85,8 +85,10 @@ class RpcModel(SensorModelBase):
     rpc : Rpc00b
         The coefficients (pixel-centre convention).
     shape : (int, int), optional
-        ``(rows, cols)`` of the image. Files that do not state it (most RPC text formats) get
-        ``ceil(OFF + SCALE + 0.5)`` per axis: the extent the RPC was fitted over.
+        ``(rows, cols)`` of the image. Files that do not state it (most RPC text formats, a
+        DIMAP ``RPC_*.XML`` without its ``DIM_*.XML``) get ``ceil(OFF + SCALE + 0.5)`` per
+        axis: the extent the RPC was fitted over, which is not the image's size
+        (:attr:`shape_stated` is then False).
     domain_limit : float
         Horizontal validity domain: points whose normalised ``L`` or ``P`` exceed this
         magnitude (RPC00B is fitted on [-1, 1]; GDAL flags above 1.5), or that lie farther
@@ -144,6 +146,7 @@ class RpcModel(SensorModelBase):
             raise TypeError(f"RpcModel needs an Rpc00b, got {type(rpc).__name__}")
         rpc.check_plausible()
         self._rpc = rpc
+        self._shape_stated = shape is not None
         if shape is None:
             shape = (
                 max(1, math.ceil(rpc.line_off + abs(rpc.line_scale) + 0.5)),
@@ -212,6 +215,17 @@ class RpcModel(SensorModelBase):
     @property
     def shape(self) -> tuple[int, int]:
         return self._shape
+
+    @property
+    def shape_stated(self) -> bool:
+        """Whether :attr:`shape` is the image's size as a file (or the caller) stated it.
+
+        False when the RPC file gives no image size: :attr:`shape` is then the RPC's fitted
+        extent ``ceil(OFF + SCALE + 0.5)``, and
+        :func:`~geoblock.models.crop.model_for_image` takes an image of about that size
+        (within :data:`~geoblock.models.crop.UNSTATED_SHAPE_TOLERANCE`) as the whole scene.
+        """
+        return self._shape_stated
 
     @property
     def height_range(self) -> tuple[float, float]:
@@ -283,6 +297,7 @@ class RpcModel(SensorModelBase):
             "model": self.name,
             "schema_version": self.schema_version,
             "shape": list(self._shape),
+            "shape_stated": self._shape_stated,
             "domain_limit": self._domain_limit,
             "height_limit": self._height_limit,
             "height_margin_m": self._height_margin_m,
@@ -293,7 +308,8 @@ class RpcModel(SensorModelBase):
     def from_dict(cls, data: Mapping[str, Any]) -> Self:
         try:
             rpc = Rpc00b.from_dict(data["rpc"], source="model dictionary")
-            return cls(rpc, tuple(data["shape"]), domain_limit=data.get("domain_limit", 1.5),
+            shape = tuple(data["shape"]) if data.get("shape_stated", True) else None
+            return cls(rpc, shape, domain_limit=data.get("domain_limit", 1.5),
                        height_limit=data.get("height_limit", 5.0),
                        height_margin_m=data.get("height_margin_m", HEIGHT_MARGIN_M))
         except KeyError as exc:

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from geoblock.errors import ModelFormatError
-from geoblock.io.metadata import XmlFields
+from geoblock.io.metadata import XmlFields, read_xml
 from geoblock_rpc._formats.common import (
     AnyPath, _POLY_KEYS, _SCALAR_KEYS, Result, Shape, _field_error, _image_size, _src,
+    _xml_error,
 )
 from geoblock_rpc.rpc00b import Rpc00b
 
@@ -127,14 +129,45 @@ def _parse_dimap(path: AnyPath, doc: XmlFields, _depth: int = 0) -> Result | Non
     if mission:
         idx = root.findtext(".//Source_Identification//MISSION_INDEX") or ""
         extra["satellite_id"] = f"{mission.strip()} {idx.strip()}".strip()
+    # the image's size is the product document's (Raster_Dimensions), never the RFM's
+    # validity domain (Direct_Model_Validity_Domain is where the RFM was fitted: -27..42248
+    # rows for the 41801-row Ventoux scene)
     shape = _dimap_shape(path, root)
-    if shape is None:
-        d = valid.find("Direct_Model_Validity_Domain")
-        if d is not None and d.findtext("LAST_ROW") and d.findtext("LAST_COL"):
-            shape = _image_size(
-                path, d.findtext("LAST_ROW"), d.findtext("LAST_COL"),
-                f"{where}/RFM_Validity/Direct_Model_Validity_Domain/LAST_ROW/LAST_COL")
+    if shape is None and _depth == 0:
+        found = _product_shape(path)
+        if found is not None:
+            shape, extra["shape_from"] = found
     return rpc, shape, extra
+
+
+def _product_shape(path: AnyPath) -> tuple[Shape, str] | None:
+    """The image size of the DIMAP product document (``DIM_*.XML``) beside an ``RPC_*.XML``
+    that names it as its RFM component (``COMPONENT_PATH href``), and that document's path.
+
+    ``None`` when no such document is there (the RPC file was copied alone): the model's
+    size is then not stated (:attr:`RpcModel.shape_stated
+    <geoblock_rpc.model.RpcModel.shape_stated>`).
+    """
+    if not isinstance(path, Path):
+        return None  # a GDAL virtual path: no directory to look in
+    try:
+        candidates = sorted(p for p in path.parent.iterdir()
+                            if p.name.upper().startswith("DIM_") and p.suffix.upper() == ".XML")
+    except OSError:
+        return None
+    me = path.resolve()
+    for candidate in candidates:
+        try:
+            doc = read_xml(candidate, _xml_error, strip_namespaces=True)
+        except ModelFormatError:
+            continue  # not well-formed: not the product document we look for
+        for ref in doc.root.iter("COMPONENT_PATH"):
+            href = ref.get("href")
+            if href and (candidate.parent / href).resolve() == me:
+                shape = _dimap_shape(candidate, doc.root)
+                if shape is not None:
+                    return shape, str(candidate)
+    return None
 
 
 def _check_box(rpc: Rpc00b, extra: dict[str, Any]) -> Rpc00b:
