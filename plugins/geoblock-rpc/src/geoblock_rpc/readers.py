@@ -65,8 +65,9 @@ from geoblock.io import open_image, open_quietly
 from geoblock.io.metadata import decode_text, read_bytes, read_xml
 from geoblock.io.vsi import as_path
 from geoblock_rpc._formats.common import RPC00A_TO_B, AnyPath, Result, _src, _xml_error
-from geoblock_rpc._formats.dg import _parse_isd, _parse_rpb
+from geoblock_rpc._formats.dg import _parse_isd, _parse_rpb, looks_imd, parse_imd
 from geoblock_rpc._formats.dimap import _parse_dimap, _parse_phr_dimap
+from geoblock_rpc._formats.fixed import looks_alos, parse_alos
 from geoblock_rpc._formats.ossim import _parse_ossim
 from geoblock_rpc._formats.raster import _parse_gdal, _parse_vrt
 from geoblock_rpc._formats.text import _parse_json, _parse_rpc_txt
@@ -101,7 +102,8 @@ def sniff_rpc_format(path: str | os.PathLike[str]) -> str | None:
     """The RPC container format of ``path`` judged from its content, or ``None``.
 
     Returns one of ``"gdal"`` (a binary raster for GDAL), ``"xml"`` (decided when parsing:
-    VRT, DigitalGlobe ISD, DIMAP), ``"rpc-txt"``, ``"rpb"``, ``"ossim-kwl"``, ``"json"``.
+    VRT, DigitalGlobe ISD, DIMAP), ``"rpc-txt"``, ``"rpb"``, ``"ossim-kwl"``, ``"json"``, ``"dg-imd"``
+    (a DigitalGlobe ``.IMD``: its ``.RPB`` is read), ``"alos"`` (JAXA fixed-width).
     """
     path = as_path(path)
     head = read_bytes(path, _HEAD_BYTES)
@@ -120,6 +122,10 @@ def sniff_rpc_format(path: str | os.PathLike[str]) -> str | None:
         return "ossim-kwl"
     if _RPCTXT_RE.search(text) and re.search(r"^\s*LINE_OFF\s*:", text, re.MULTILINE):
         return "rpc-txt"
+    if looks_imd(text):
+        return "dg-imd"
+    if looks_alos(text):
+        return "alos"
     return None
 
 
@@ -186,6 +192,8 @@ def _dispatch(path: AnyPath) -> Result | None:
         "rpb": lambda: _parse_rpb(path, _text(path)),
         "ossim-kwl": lambda: _parse_ossim(path, _text(path)),
         "rpc-txt": lambda: _parse_rpc_txt(path, _text(path)),
+        "dg-imd": lambda: parse_imd(path, _text(path), _text),
+        "alos": lambda: parse_alos(path, _text(path)),
     }
     result = parsers[kind]() if kind is not None else None
     if result is None and _name_says_rpc(path) and kind not in ("json", "xml"):

@@ -21,10 +21,37 @@ Shape = tuple[int, int]
 Result = tuple[Rpc00b, Shape | None, dict[str, Any]]
 
 
-#: index in RPC00B order of each RPC00A term (A: 1 L P H LP LH PH LPH L2 P2 H2 L3 ...)
+#: Index in RPC00B order of each RPC00A term: the B-order coefficient ``RPC00A_TO_B[a]`` is the
+#: A-order coefficient ``a``. With ``L`` the normalised longitude, ``P`` the latitude and ``H``
+#: the height, RPC00A is ``1 L P H LP LH PH LPH L2 P2 H2 L3 L2P L2H LP2 P3 P2H LH2 PH2 H3``
+#: (OSSIM ``ossimRpcModel::polynomial``, ``src/projection/ossimRpcModel.cpp`` l. 645-652 at
+#: ossimlabs/ossim ``bcf2f33``, type ``A``) and RPC00B
+#: ``1 L P H LP LH PH L2 P2 H2 PLH L3 LP2 LH2 L2P P3 PH2 L2H P2H H3`` (the same file's type
+#: ``B``, GDAL's ``gdal_rpc.cpp``). The quadratic terms form a 4-cycle (7 -> 10 -> 9 -> 8 -> 7)
+#: and the cubic ones three swaps (12 <-> 14, 13 <-> 17, 16 <-> 18). GDAL's NITF reader
+#: (``NITFReadRPC00B``, ``anRPC00AMap``) holds the same numbers but reads them the other way
+#: round (B term ``i`` from A term ``map[i]``), which inverts the 4-cycle: its quadratic terms
+#: are not OSSIM's.
 RPC00A_TO_B: tuple[int, ...] = (
-    0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 12, 13, 14, 15, 16, 17, 18, 19,
+    0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19,
 )
+
+
+def rpc00a_to_b(coefficients: Any) -> np.ndarray:
+    """20 RPC00A-order coefficients (last axis) in RPC00B order."""
+    a = np.asarray(coefficients, dtype=np.float64)
+    b = np.empty_like(a)
+    b[..., list(RPC00A_TO_B)] = a
+    return b
+
+
+def gdal_rpc00a_to_b(coefficients: Any) -> np.ndarray:
+    """GDAL's reading of an RPC00A TRE (B term ``i`` = A term ``RPC00A_TO_B[i]``) -> the
+    RPC00B-order coefficients of :data:`RPC00A_TO_B`'s (OSSIM's) RPC00A order."""
+    g = np.asarray(coefficients, dtype=np.float64)
+    a = np.empty_like(g)
+    a[..., list(RPC00A_TO_B)] = g  # undo GDAL's gather: A term map[i] = g[i]
+    return rpc00a_to_b(a)
 
 
 _SCALAR_KEYS = (

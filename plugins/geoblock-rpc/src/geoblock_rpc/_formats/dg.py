@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from typing import Any
 
 from geoblock.errors import ModelFormatError
@@ -81,4 +82,50 @@ def _parse_isd(path: AnyPath, root: ET.Element) -> Result:
     rows, cols = root.findtext("IMD/NUMROWS"), root.findtext("IMD/NUMCOLUMNS")
     if rows is not None or cols is not None:
         shape = _image_size(path, rows, cols, "ISD <IMD><NUMROWS>/<NUMCOLUMNS>")
+    return rpc, shape, extra
+
+
+_IMD_ITEM = re.compile(r"^\s*(\w+)\s*=\s*([^;]*?)\s*;", re.MULTILINE)
+
+
+def looks_imd(text: str) -> bool:
+    """A DigitalGlobe ``.IMD`` keyword file: an ``IMAGE_n`` group and ``numRows``, no RPC."""
+    return (re.search(r"BEGIN_GROUP\s*=\s*IMAGE_\d", text, re.IGNORECASE) is not None
+            and re.search(r"^\s*numRows\s*=", text, re.MULTILINE | re.IGNORECASE) is not None
+            and re.search(r"\blineOffset\s*=", text, re.IGNORECASE) is None)
+
+
+def _sibling(path: AnyPath, suffix: str) -> AnyPath | None:
+    for name in (path.stem + suffix, path.stem + suffix.lower()):
+        candidate = path.parent / name
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def parse_imd(path: AnyPath, text: str, rpb_text: Callable[[AnyPath], str]) -> Result:
+    """A DigitalGlobe ``.IMD`` given alone: the RPC of an RPC-only product is its ``.RPB``
+    (same name, DigitalGlobe Imagery Support Data documentation), read beside it; the image's
+    size and the satellite from the ``.IMD``.
+
+    Raises :class:`ModelFormatError` naming the ``.RPB`` looked for when it is not there.
+    """
+    rpb = _sibling(path, ".RPB")
+    if rpb is None:
+        raise ModelFormatError(
+            f"{_src(path)}: a DigitalGlobe .IMD holds no RPC; the product's RPC is its .RPB "
+            f"({path.stem}.RPB), which is not beside it: pass the .RPB or the ISD .XML (or the "
+            ".IMD with its .EPH/.ATT/.GEO files for the physical model)"
+        )
+    rpc, _, extra = _parse_rpb(rpb, rpb_text(rpb))
+    items = {k.lower(): v.strip().strip('"') for k, v in _IMD_ITEM.findall(text)}
+    shape = None
+    if "numrows" in items or "numcolumns" in items:
+        shape = _image_size(path, items.get("numrows"), items.get("numcolumns"),
+                            "IMD numRows/numColumns")
+    extra = {**extra, "format": "dg-imd", "rpb_file": str(rpb)}
+    if items.get("satid"):
+        extra["satellite_id"] = items["satid"]
+    if items.get("catid"):
+        extra["source_ids"] = {"catalog_id": items["catid"]}
     return rpc, shape, extra

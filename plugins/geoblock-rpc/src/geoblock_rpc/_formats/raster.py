@@ -16,6 +16,7 @@ from geoblock_rpc._formats.common import (
     AnyPath, _OPTIONAL_KEYS, _POLY_KEYS, _SCALAR_KEYS, Result, _field_error, _image_size, _require,
     _rpc_from_fields, _src,
 )
+from geoblock_rpc._formats.fixed import parse_fixed
 from geoblock_rpc.rpc00b import Rpc00b
 
 # ---------------------------------------------------------------------------------- parsers
@@ -86,29 +87,42 @@ def _parse_gdal(path: AnyPath) -> Result | None:
 
     try:
         with open_quietly(path) as ds:
-            rpcs = ds.rpcs
+            tags = {str(k).upper(): v for k, v in (ds.tags(ns="RPC") or {}).items()}
             shape = (int(ds.height), int(ds.width))
             driver = ds.driver
             imd = ds.tags(ns="IMD") or {}
+            tre = (ds.tags(ns="TRE") or {}) if driver == "NITF" else {}
             files = [Path(f).name for f in ds.files]
     except RasterioIOError:
         return None
-    if rpcs is None:
+    if not tags:
         kind = {"GTiff": "a GeoTIFF", "NITF": "a NITF"}.get(driver, f"a {driver} raster")
         raise ModelFormatError(
             f"{_src(path)}: is {kind} without RPC metadata (no RPC tags or RPC00B TRE, no "
             "RPB/_RPC.TXT sidecar next to it); pass the sensor metadata file instead"
         )
-    items = rpcs.to_gdal()
-    if driver == "GTiff":
-        items = _exact_tag_values(path, items)
-    rpc = Rpc00b.from_gdal(items, source=_src(path))
+    # where GDAL found the RPC: a sidecar (.RPB, _RPC.TXT, ALOS RPC-*.txt) or the raster itself
+    sidecars = [f for f in files[1:] if f.upper().endswith((".RPB", "_RPC.TXT", ".TXT"))]
+    what = "GDAL RPC metadata" + (f" (from {', '.join(sidecars)})" if sidecars else "")
     extra: dict[str, Any] = {"format": "gdal", "driver": driver, "files": files,
                              "source_ids": dict(getattr(open_image(path), "source_ids", {}))}
+    if "RPC00A" in tre and "RPC00B" not in tre:
+        # GDAL reorders RPC00A's terms the other way round (RPC00A_TO_B): read the TRE itself
+        rpc = parse_fixed(_src(path), tre["RPC00A"], "NITF RPC00A TRE", tre=True, rpc00a=True)
+        extra["tre"] = "RPC00A"
+    else:
+        _require(tags, _SCALAR_KEYS + _POLY_KEYS, path, what)
+        keys = {k: k for k in _SCALAR_KEYS + _POLY_KEYS + _OPTIONAL_KEYS if k in tags}
+        rpc = _rpc_from_fields(Fields(_src(path), tags, error=_field_error(what)), keys)
+        if driver == "GTiff":
+            exact = _exact_tag_values(path, tags)
+            if exact is not tags:
+                rpc = Rpc00b.from_gdal(exact, source=_src(path))
     satid = imd.get("SATID") or imd.get("IMAGE_1.SATID")
     if satid:
         extra["satellite_id"] = satid.strip('"')
     return rpc, shape, extra
+
 
 def _parse_vrt(path: AnyPath, root: ET.Element) -> Result:
     md_nodes = [m for m in root.findall("Metadata") if m.get("domain", "").upper() == "RPC"]
