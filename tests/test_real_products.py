@@ -31,12 +31,6 @@ NOT_SENSOR_METADATA = (
     ".geojson",  # an area of interest
     "/README",  # prose
 )
-#: products the readers do not open yet, with the item of issue 26 that adds them (strict: the
-#: marker must go when the reader lands)
-PENDING = {
-    "gdal-autotest/gcore/data/alos/RPC-md_alos.txt": "issue 26 item 5: ALOS fixed-width RPC",
-    "gdal-autotest/gcore/data/md_dg.IMD": "issue 26 item 5: an .IMD opens the .RPB beside it",
-}
 MANIFEST_ROW = re.compile(r"^\| `([^`]+)` \|", re.M)
 
 
@@ -83,9 +77,7 @@ def pytest_generate_tests(metafunc):
         from .conftest import DATA_DIR  # the folder of the data_dir fixture
 
         names = sensor_files(DATA_DIR) if (DATA_DIR / "MANIFEST.md").is_file() else []
-        params = [pytest.param(n, marks=pytest.mark.xfail(reason=PENDING[n], strict=True))
-                  if n in PENDING else n for n in names]
-        metafunc.parametrize("manifest_file", params or ["<no MANIFEST.md>"])
+        metafunc.parametrize("manifest_file", names or ["<no MANIFEST.md>"])
 
 
 def test_every_real_product_opens_and_projects(manifest_file, data_dir):
