@@ -253,27 +253,13 @@ def triangulate(
         raise ObservationError(f"{where}: step_m must be positive, got {step_m!r}")
     if int(max_iterations) < 1:
         raise ObservationError(f"{where}: max_iterations must be >= 1, got {max_iterations!r}")
-    ids = np.atleast_1d(np.asarray(id)).astype(str)
-    if ids.ndim != 1:
-        raise ShapeMismatchError(f"{where}: id must be one-dimensional, got shape {ids.shape}")
+    ids, images, r, c = measurements(models, id, image, row, col, where)
     k = ids.shape[0]
-    images = _strings("image", image, k, where)
-    r = _floats("row", row, k, where)
-    c = _floats("col", col, k, where)
     sig = _floats("sigma_px", sigma_px, k, where)
     if not (np.isfinite(sig) & (sig > 0)).all():
         bad = ids[~(np.isfinite(sig) & (sig > 0))][:5].tolist()
         raise ObservationError(f"{where}: sigma_px must be positive and finite (points {bad})")
     names = [str(m) for m in models]
-    unknown = sorted(set(images.tolist()) - set(names))
-    if unknown:
-        raise ObservationError(f"{where}: measurements name image(s) {unknown} that are not in "
-                               f"the models ({names})")
-    keys = np.char.add(np.char.add(images, "\x1f"), ids)
-    uniq, counts = np.unique(keys, return_counts=True)
-    if (counts > 1).any():
-        dup = [u.replace("\x1f", ": ") for u in uniq[counts > 1][:5]]
-        raise ObservationError(f"{where}: point(s) measured more than once in one image: {dup}")
     covs = {str(n): np.asarray(v, np.float64) for n, v in (parameter_covariance or {}).items()}
     for name, cov in covs.items():
         if name not in models:
@@ -458,6 +444,39 @@ def _intersect(origin: Float64Array, direction: Float64Array, use: np.ndarray,
         if idx.size:
             xyz[idx] = np.linalg.solve(m[idx], b[idx][..., None])[..., 0]
     return xyz, ok
+
+
+def measurements(models: Mapping[str, Any], id: ArrayLike, image: ArrayLike, row: ArrayLike,
+                 col: ArrayLike, where: str) -> tuple[np.ndarray, np.ndarray, Float64Array,
+                                                      Float64Array]:
+    """Image measurements checked: ``(id, image, row, col)`` as 1-D arrays of one length.
+
+    Raises
+    ------
+    ShapeMismatchError
+        The arrays are not one-dimensional of one length, or ``row``/``col`` not numeric.
+    ObservationError
+        A measurement names an image missing from ``models``, or a point is measured twice
+        in one image (the message names them).
+    """
+    ids = np.atleast_1d(np.asarray(id)).astype(str)
+    if ids.ndim != 1:
+        raise ShapeMismatchError(f"{where}: id must be one-dimensional, got shape {ids.shape}")
+    k = ids.shape[0]
+    images = _strings("image", image, k, where)
+    r = _floats("row", row, k, where)
+    c = _floats("col", col, k, where)
+    names = [str(m) for m in models]
+    unknown = sorted(set(images.tolist()) - set(names))
+    if unknown:
+        raise ObservationError(f"{where}: measurements name image(s) {unknown} that are not in "
+                               f"the models ({names})")
+    keys = np.char.add(np.char.add(images, "\x1f"), ids)  # not NUL: numpy strips it
+    uniq, counts = np.unique(keys, return_counts=True)
+    if (counts > 1).any():
+        dup = [u.replace("\x1f", ": ") for u in uniq[counts > 1][:5]]
+        raise ObservationError(f"{where}: point(s) measured more than once in one image: {dup}")
+    return ids, images, r, c
 
 
 def _floats(name: str, value: ArrayLike, k: int, where: str) -> Float64Array:

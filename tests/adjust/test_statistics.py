@@ -224,9 +224,11 @@ def test_ictp_input_errors(ictp_ground):
     ground, ids = ictp_ground
     models = {"A": AffineCamera.example(), "B": AffineCamera.example()}
     id_, image, row, col = _measure(models, ground, ids)
-    with pytest.raises(ObservationError, match=r"image\(s\) \['Z'\] that are not in models"):
+    with pytest.raises(ObservationError, match=r"image\(s\) \['Z'\] that are not in the models"):
         ictp_accuracy(models, id_, ["Z"] + image[1:], row, col, 0.0)
-    with pytest.raises(ObservationError, match="measured more than once in one image"):
+    # the message names image and point ("A: c0"), not "Ac0"
+    twice = r"measured more than once in one image: \[.A: c0.\]"
+    with pytest.raises(ObservationError, match=twice):
         ictp_accuracy(models, ["c0", "c0"] + id_[2:], image, row, col, 0.0)
     with pytest.raises(ObservationError, match="no point is measured in two images"):
         ictp_accuracy(models, id_[:8], image[:8], row[:8], col[:8], 0.0)

@@ -628,24 +628,11 @@ def ictp_accuracy(
     """
     from geoblock.dem import localize  # geoblock.dem imports nothing from adjust; keep it lazy
 
+    from geoblock.triangulation import measurements  # same layer; lazy like localize
+
     where = "ictp_accuracy"
-    ids = np.atleast_1d(np.asarray(id)).astype(str)
+    ids, images, r, c = measurements(models, id, image, row, col, where)
     k = ids.shape[0]
-    if ids.ndim != 1:
-        raise ShapeMismatchError(f"{where}: id must be one-dimensional, got shape {ids.shape}")
-    images = _labels("image", image, k, where=where)
-    r = _vector("row", row, k, where=where)
-    c = _vector("col", col, k, where=where)
-    names = [str(m) for m in models]
-    unknown = sorted(set(images.tolist()) - set(names))
-    if unknown:
-        raise ObservationError(f"{where}: measurements name image(s) {unknown} that are not in "
-                               f"models ({names})")
-    pair_keys = np.char.add(np.char.add(images, "\x00"), ids)
-    uniq, counts = np.unique(pair_keys, return_counts=True)
-    if (counts > 1).any():
-        dup = [u.replace("\x00", ": ") for u in uniq[counts > 1][:5]]
-        raise ObservationError(f"{where}: point(s) measured more than once in one image: {dup}")
 
     # ray-trace each image's measurements (one vectorised call per image)
     lon = np.full(k, np.nan)
@@ -662,6 +649,7 @@ def ictp_accuracy(
     # every pair of images measuring the same point
     idx_a: list[IndexArray] = []
     idx_b: list[IndexArray] = []
+    names = [str(m) for m in models]
     for i, name_a in enumerate(names):
         sel_a = np.flatnonzero(images == name_a)
         for name_b in names[i + 1:]:
