@@ -11,6 +11,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from geoblock_rpc.direct import DirectRfm, read_direct_rfm
     from geoblock_rpc.fit import fit_rpc
     from geoblock_rpc.fold import FoldReport, fold_correction
     from geoblock_rpc.model import RpcModel
@@ -19,12 +20,14 @@ if TYPE_CHECKING:
     from geoblock_rpc.rpc00b import TERMS, Rpc00b
 
 __all__ = [
-    "TERMS", "FoldReport", "RfmFit", "RfmModel", "Rpc00b", "RpcModel", "fit_rfm", "fit_rpc",
-    "fold_correction", "read_rpc",
+    "TERMS", "DirectRfm", "FoldReport", "RfmFit", "RfmModel", "Rpc00b", "RpcModel", "fit_rfm",
+    "fit_rpc", "fold_correction", "read_direct_rfm", "read_rpc",
 ]
 __version__ = "0.1.0"
 
 _LAZY = {
+    "DirectRfm": "geoblock_rpc.direct",
+    "read_direct_rfm": "geoblock_rpc.direct",
     "fit_rpc": "geoblock_rpc.fit",
     "FoldReport": "geoblock_rpc.fold",
     "fold_correction": "geoblock_rpc.fold",
