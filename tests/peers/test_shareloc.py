@@ -142,14 +142,15 @@ def test_rpc_phrdimap_round_trip_at_125m(sl):
     assert ic.row == pytest.approx(200.0, abs=2e-2)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 item 9: the DIMAP Direct_Model is not offered")
 def test_rpc_direct_model_vs_iterated_inverse(sl):
     """tests/geomodels/test_rpc.py l.269-287 (test_rpc_direct_inverse_iterative_vs_direct): the
     vendor's direct RFM at (row 200, col 600, h 125) and the iterated inverse RFM agree within
-    10 / 111111000 deg (~1 cm). geoblock does not yet read the ``Direct_Model``; the test asks
-    for it as ``open_model(..., direct=True)`` (rename with item 9's API when it lands)."""
+    10 / 111111000 deg (~1 cm). geoblock reads the ``Direct_Model`` with
+    ``geoblock_rpc.read_direct_rfm``; ``backproject`` of the RPC model iterates the inverse."""
+    from geoblock_rpc import read_direct_rfm
+
     inverse = _open(sl / PHRDIMAP_TN, model="rpc")
-    direct = _open(sl / PHRDIMAP_TN, model="rpc", direct=True)
+    direct = read_direct_rfm(sl / PHRDIMAP_TN)
     gi = inverse.backproject(200.0, 600.0, 125.0)
     gd = direct.backproject(200.0, 600.0, 125.0)
     assert gd.lon == pytest.approx(gi.lon, abs=10.0 / 111111000)
