@@ -20,7 +20,16 @@ format (``extra["format"]``)  recognised by                        offsets
 ``dimap-phr``          ``PHR_Dimap_Document`` ``F_COL``/``F_ROW``  ``-1`` (1-based)
 ``ossim-kwl``          ``line_num_coeff_00:`` (OSSIM ``.geom``)    as stored (0-based centre)
 ``rpcm-json``          JSON with rpcm/IARPA keys (``row_offset``)  as stored
+``dg-imd``             DigitalGlobe ``.IMD`` (``BEGIN_GROUP =      as stored (its ``.RPB``)
+                       IMAGE_1``, ``numRows``): its ``.RPB``
+``alos``               one fixed-width line of 1026 characters     as stored (as GDAL)
+                       (JAXA ALOS ``RPC-*.txt``)
 =====================  ==========================================  ===========================
+
+The parsers live in the private package ``geoblock_rpc._formats``, one module per family
+(rasters and VRTs, text and JSON, DigitalGlobe, OSSIM, DIMAP, fixed-width NITF TRE and ALOS).
+RPC00A coefficients (OSSIM ``polynomial_format A``, a NITF ``RPC00A`` TRE) are put in RPC00B
+order by :data:`RPC00A_TO_B` (OSSIM's RPC00A).
 
 Evidence for the conventions (checked on the shared test data):
 
