@@ -19,6 +19,8 @@ import numpy as np
 import pytest
 import rasterio
 import rasterio.errors
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rasterio.rpc import RPC
 from rasterio.transform import RPCTransformer
 
@@ -204,3 +206,35 @@ def test_unparsable_raster_rpc_names_the_field_and_file(data_dir, tmp_path):
                        match=r"img\.tif: GDAL RPC metadata \(from img\.RPB\) field LINE_OFF "
                              r"must be a number, got '8x12'"):
         geoblock.open_model(image)
+
+
+# ------------------------------------------------------------------ fixed-width round trip
+#: a fixed-width coefficient of at most 1e-3: sign, d.dddddd, E, signed one-digit exponent
+_coef = st.builds(lambda m, e: f"{m:+.6f}E{e:+d}",
+                  st.floats(min_value=-9.999999, max_value=9.999999, allow_nan=False),
+                  st.integers(-9, -4))
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(line_off=st.integers(1000, 99_999), samp_off=st.integers(1000, 99_999),
+       lat=st.floats(-80, 80), lon=st.floats(-179, 179), h_off=st.integers(-999, 9999),
+       coefficients=st.lists(_coef, min_size=80, max_size=80))
+def test_alos_layout_round_trip(tmp_path, line_off, samp_off, lat, lon, h_off, coefficients):
+    """Any record in the ALOS widths reads back as the numbers its fields spell (the line and
+    sample scales equal, for a plausible pixel shape)."""
+    # a plausible geometry: row from -latitude, column from longitude, denominators near 1
+    coefficients[2], coefficients[41] = "-1.000000E+0", "+1.000000E+0"
+    coefficients[20] = coefficients[60] = "+1.000000E+0"
+    head = (f"{line_off:06d}{samp_off:05d}{lat:+08.4f}{lon:+09.4f}{h_off:+05d}"
+            f"{line_off:06d}{line_off:05d}{'+00.2000'}{'+000.3000'}{'+0500'}")
+    assert all(len(c) == 12 for c in coefficients) and len(head) == 66
+    path = tmp_path / "RPC-roundtrip.txt"
+    path.write_text(head + "".join(coefficients))
+    rpc, _, extra = read_rpc(path)
+    assert extra["format"] == "alos"
+    assert (rpc.line_off, rpc.samp_off) == (line_off, samp_off)
+    assert rpc.lat_off == float(f"{lat:+08.4f}") and rpc.long_off == float(f"{lon:+09.4f}")
+    assert rpc.height_off == h_off
+    assert np.array_equal(rpc.line_num, [float(c) for c in coefficients[:20]])
+    assert np.array_equal(rpc.samp_den, [float(c) for c in coefficients[60:]])
