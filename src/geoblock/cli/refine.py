@@ -107,6 +107,21 @@ def _read_block_points(ground_path: str, image_path: str, image_id: str | None,
     return gcps, (icps if len(icps.id) else None), image_id
 
 
+def _check_formats(targets: list[tuple[str | None, str]]) -> None:
+    """Refuse, before the fit, an output whose format its suffix does not tell (the paths
+    themselves are checked by :func:`check_outputs`: distinct, writable, not inputs)."""
+    from geoblock.errors import UnsupportedFormatError
+    from geoblock.io.models import _FORMATS_BY_SUFFIX
+
+    for fmt, path in targets:
+        suffix = Path(path).suffix
+        if fmt is None and suffix.lower() not in _FORMATS_BY_SUFFIX:
+            raise UnsupportedFormatError(
+                f"{path!r}: cannot infer a model format from the suffix {suffix!r}; "
+                "use FORMAT:PATH (for example rpc-txt:scene_RPC.TXT)"
+            )
+
+
 def _write_all(refined: SensorModel, targets: list[tuple[str | None, str]],
                ) -> list[tuple[Path, str, list[str]]]:
     """Write every ``(format, path)`` of ``targets``, or none of them.
@@ -116,23 +131,10 @@ def _write_all(refined: SensorModel, targets: list[tuple[str | None, str]],
     files moved into place (a missing format, an unwritable model or a failing writer leaves
     the destinations untouched). Returns ``(path, format label, warning messages)`` per target.
     """
-    from geoblock.errors import GeoblockError, UnsupportedFormatError
+    from geoblock.errors import GeoblockError
     from geoblock.io import files, write_model
-    from geoblock.io.models import _FORMATS_BY_SUFFIX
 
     finals = [Path(path) for _, path in targets]
-    seen: dict[Path, str] = {}
-    for (fmt, path), final in zip(targets, finals, strict=True):
-        key = final.resolve()
-        if key in seen:
-            raise click.UsageError(f"{path} is requested twice (as {seen[key]} and "
-                                   f"{fmt or 'from suffix'}): give each output its own path")
-        seen[key] = fmt or "from suffix"
-        if fmt is None and final.suffix.lower() not in _FORMATS_BY_SUFFIX:
-            raise UnsupportedFormatError(
-                f"{path!r}: cannot infer a model format from the suffix {final.suffix!r}; "
-                "use FORMAT:PATH (for example rpc-txt:scene_RPC.TXT)"
-            )
     done: list[tuple[Path, str, list[str]]] = []
     with files.staged_files(finals) as staged_paths:
         for (fmt, _), final, staged in zip(targets, finals, staged_paths, strict=True):
@@ -265,6 +267,8 @@ def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
                   {"MODEL": model_path, "--gcps": gcps_path, "--icps": icps_path,
                    "--points": points_path, "--ground-points": ground_path,
                    "--image-points": image_path}, overwrite=overwrite)
+    targets: list[tuple[str | None, str]] = [("json", output), *writes]
+    _check_formats(targets)
     model = open_model_arg(model_path, model_name)
     icps: ControlPoints | None
     if ground_path is not None and image_path is not None:  # the block files (checked above)
@@ -284,7 +288,7 @@ def refine(model_path: str, gcps_path: str | None, icps_path: str | None,
     lines = [result.report(), "", *_stats_table(result), ""]
     click.echo("\n".join(lines))
 
-    for written, label, messages in _write_all(refined, [("json", output), *writes]):
+    for written, label, messages in _write_all(refined, targets):
         click.echo(f"refined model written to {written} ({label})")
         for text in messages:
             click.echo(f"  {text}")
