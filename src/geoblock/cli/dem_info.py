@@ -56,7 +56,8 @@ def describe_dem(dem: DemSource) -> dict[str, Any]:
         ``nodata_share`` (0..1), ``file_height_range`` (file datum, metres) and
         ``height_range`` (ellipsoidal, metres). A mosaic gives ``tiles``: one such dict each.
     """
-    from geoblock.dem.raster import MosaicDem, RasterDem
+    from geoblock.dem.mosaic import MosaicDem
+    from geoblock.dem.raster import RasterDem
 
     if isinstance(dem, RasterDem):
         return _describe_raster(dem)

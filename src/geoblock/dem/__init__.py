@@ -7,7 +7,8 @@ from geoblock.dem.geoid import ConstantGeoidDem, Geoid, find_geoid
 from geoblock.dem.grid import GridDem
 from geoblock.dem.intersect import as_dem_source, coverage_gap, localize
 from geoblock.dem.protocol import DemSource
-from geoblock.dem.raster import BLOCK_CACHE, ArrayDem, MosaicDem, RasterDem
+from geoblock.dem.mosaic import MosaicDem
+from geoblock.dem.raster import BLOCK_CACHE, ArrayDem, RasterDem
 from geoblock.dem.sampling import INTERPOLATIONS
 
 __all__ = [

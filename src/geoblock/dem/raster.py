@@ -1,7 +1,8 @@
 """File DEMs through rasterio: GeoTIFF, SRTM ``.hgt``, VRT, any GDAL raster; tiles mosaicked.
 
-:class:`RasterDem` samples one raster file, :class:`MosaicDem` a list of them (each point takes
-the first tile that has a height). Users normally call :func:`geoblock.open_dem`.
+:class:`RasterDem` samples one raster file (its compiled block kernels are in
+:mod:`geoblock.dem.sampling`); :class:`~geoblock.dem.mosaic.MosaicDem` a list of them (each point
+takes the first tile that has a height). Users normally call :func:`geoblock.open_dem`.
 
 Reading
     The raster is read in square blocks (512 x 512 pixels, or the whole raster when it is at
@@ -43,7 +44,6 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
 import pyproj
 from affine import Affine
@@ -55,7 +55,14 @@ from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
 from geoblock.dem.protocol import Bounds
-from geoblock.dem.sampling import INTERPOLATIONS, _nb_point, _nb_point_s
+from geoblock.dem.sampling import (
+    INTERPOLATIONS,
+    _nb_locate,
+    _nb_pixel_coords,
+    _nb_sample_index,
+    _nb_sample_keyed,
+    _nb_sample_window,
+)
 from geoblock.errors import DemCoverageError, DemDatumError, DemError
 from geoblock.io.rasters import open_quietly, read_window
 from geoblock.pixels import PIXEL_CENTRE, pixel_to_map
@@ -68,7 +75,7 @@ API_DATUM_HINT = (
     "open_dem(path, vertical='geoid'); or give the file a compound CRS such as "
     "EPSG:4326+5773")
 
-__all__ = ["API_DATUM_HINT", "BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "MosaicDem", "RasterDem",
+__all__ = ["API_DATUM_HINT", "BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "RasterDem",
            "file_vertical"]
 
 VERTICALS = ("ellipsoid", "geoid")
@@ -919,106 +926,7 @@ def tile_from_dict(data: Mapping[str, Any]) -> RasterDem:
     return RasterDem.from_dict(dict(data))
 
 
-# ---------------------------------------------------------------------------- MosaicDem
-class MosaicDem(DemBase):
-    """Several raster DEMs (tiles, in any CRSs) as one: each point takes the first tile, in
-    the order given, that has a height there.
-
-    Parameters
-    ----------
-    tiles : sequence of RasterDem
-    strict : bool
-        Raise :class:`~geoblock.errors.DemCoverageError` for points outside every tile.
-    """
-
-    def __init__(self, tiles: Sequence[RasterDem], *, strict: bool = False) -> None:
-        if not tiles:
-            raise DemError("a DEM mosaic needs at least one tile")
-        self._tiles = tuple(tiles)
-        self._strict = bool(strict)
-
-    @property
-    def tiles(self) -> tuple[RasterDem, ...]:
-        return self._tiles
-
-    @property
-    def bounds(self) -> tuple[float, float, float, float]:
-        b = np.array([t.bounds for t in self._tiles])
-        return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()),
-                float(b[:, 3].max()))
-
-    @property
-    def resolution_m(self) -> float:
-        return min(t.resolution_m for t in self._tiles)
-
-    def _heights(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
-        out = np.full(lon.shape, np.nan)
-        outside = np.ones(lon.shape, bool)
-        todo = np.arange(lon.size)
-        for tile in self._tiles:
-            if todo.size == 0:
-                break
-            h, out_tile = tile._sample(lon[todo], lat[todo])
-            outside[todo[~out_tile]] = False
-            out[todo] = h
-            todo = todo[~np.isfinite(h)]
-        if self._strict and outside.any():
-            raise DemCoverageError(
-                f"{int(outside.sum())} of {outside.size} points fall outside every tile of the "
-                f"DEM mosaic ({len(self._tiles)} tiles, bounds {_fmt_bounds(self.bounds)}); "
-                "strict=True"
-            )
-        return out
-
-    def height_range(self, bounds: Bounds | None = None) -> tuple[float, float]:
-        """``(min, max)`` ellipsoidal height over the tiles meeting ``bounds``, metres."""
-        ranges = []
-        for t in self._tiles:
-            if bounds is not None and not _overlap(t.bounds, bounds):
-                continue
-            lo, hi = t.height_range(bounds)
-            if np.isfinite(lo):
-                ranges.append((lo, hi))
-        if not ranges:
-            return (float("nan"), float("nan"))
-        return (min(r[0] for r in ranges), max(r[1] for r in ranges))
-
-    def heights_on_grid(self, crs: Any, transform: Affine | Sequence[float],
-                        shape: tuple[int, int]) -> np.ndarray:
-        """As :meth:`RasterDem.heights_on_grid`."""
-        return _heights_on_grid(self, crs, transform, shape)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"dem": "mosaic", "tiles": [t.to_dict() for t in self._tiles],
-                "strict": self._strict}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> MosaicDem:
-        return cls([tile_from_dict(t) for t in data["tiles"]],
-                   strict=data.get("strict", False))
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (_rebuild_mosaic, (self._tiles, self._strict))  # each tile pickles itself
-
-    def __repr__(self) -> str:
-        return f"<MosaicDem of {len(self._tiles)} tiles>"
-
-
-def _rebuild_mosaic(tiles: Sequence[RasterDem], strict: bool) -> MosaicDem:
-    return MosaicDem(tiles, strict=strict)
-
-
 # ---------------------------------------------------------------------------- helpers
-def _overlap(a: Bounds, b: Bounds) -> bool:
-    """Whether two ``(west, south, east, north)`` degree boxes meet, longitudes modulo 360
-    (a tile stored as 180..181 meets a box from -179.9 to -179.5, a box 179.8..180.02 meets
-    a tile from -180 to -179)."""
-    if a[3] < b[1] or b[3] < a[1]:
-        return False
-    return any(not (a[2] < b[0] + k or b[2] + k < a[0]) for k in (-720.0, -360.0, 0.0,
-                                                                   360.0, 720.0))
-
-
 def _fmt_bounds(b: Bounds) -> str:
     return "(" + ", ".join(f"{v:.6f}" for v in b) + ")"
 
@@ -1036,115 +944,3 @@ def _heights_on_grid(dem: DemBase, crs: Any, transform: Affine | Sequence[float]
     else:
         lon, lat = coords.transformer(horizontal, "EPSG:4326").transform(x, y)
     return dem.height(np.asarray(lon, float), np.asarray(lat, float))
-
-
-# ---------------------------------------------------------------------------- compiled paths
-@numba.njit(nogil=True, cache=True)
-def _nb_pixel_coords(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
-                     row: np.ndarray, col: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Pixel-centre row/col of CRS points ``x, y`` (longitudes wrapped from ``west`` when
-    ``lonlat``), with the inverse geotransform ``inv`` (a, b, c, d, e, f)."""
-    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
-    for k in range(x.size):
-        xx = x[k]
-        yy = y[k]
-        if lonlat:
-            dx = xx - west
-            if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
-                dx = dx % 360.0
-            xx = west + dx
-        col[k] = (a * xx + b * yy + c) - PIXEL_CENTRE
-        row[k] = (d * xx + e * yy + f) - PIXEL_CENTRE
-
-
-@numba.njit(nogil=True, cache=True)
-def _nb_locate(row: np.ndarray, col: np.ndarray, rows: int, cols: int, b: int, nbc: int,
-               nearest: bool, keys: np.ndarray) -> tuple[int, int]:  # pragma: no cover
-    """Coverage and block of every point: ``keys`` = block index (``-1`` outside); row/col
-    clipped in place to the outermost centres. Returns (min, max) key of the inside points
-    (``(-1, -1)`` when none)."""
-    kmin = -1
-    kmax = -1
-    hi_r = rows - 1.0
-    hi_c = cols - 1.0
-    for k in range(row.size):
-        r = row[k]
-        c = col[k]
-        if not (r >= -PIXEL_CENTRE and r <= rows - PIXEL_CENTRE
-                and c >= -PIXEL_CENTRE and c <= cols - PIXEL_CENTRE):
-            keys[k] = -1
-            continue
-        r = min(max(r, 0.0), hi_r)
-        c = min(max(c, 0.0), hi_c)
-        row[k] = r
-        col[k] = c
-        if nearest:
-            br = int(math.floor(r + PIXEL_CENTRE)) // b  # the pixel holding the point
-            bc = int(math.floor(c + PIXEL_CENTRE)) // b
-        else:
-            br = min(int(math.floor(r)), rows - 1) // b
-            bc = min(int(math.floor(c)), cols - 1) // b
-        key = br * nbc + bc
-        keys[k] = key
-        if kmin < 0 or key < kmin:
-            kmin = key
-        if key > kmax:
-            kmax = key
-    return kmin, kmax
-
-
-@numba.njit(nogil=True, cache=True)
-def _nb_sample_keyed(block: np.ndarray, row: np.ndarray, col: np.ndarray, keys: np.ndarray,
-                     key: int, off_r: float, off_c: float, n: int,
-                     out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at the points of ``key``."""
-    wr = np.empty(4)
-    wc = np.empty(4)
-    for k in range(row.size):
-        if keys[k] == key:
-            out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
-
-
-@numba.njit(nogil=True, cache=True)
-def _nb_sample_index(block: np.ndarray, row: np.ndarray, col: np.ndarray, idx: np.ndarray,
-                     off_r: float, off_c: float, n: int,
-                     out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at points ``idx``."""
-    wr = np.empty(4)
-    wc = np.empty(4)
-    for m in range(idx.size):
-        k = idx[m]
-        out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
-
-
-
-@numba.njit(nogil=True, cache=True, error_model="numpy")
-def _nb_sample_window(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
-                      rows: int, cols: int, n: int, window: np.ndarray, off_r: float,
-                      off_c: float, out: np.ndarray,
-                      outside: np.ndarray) -> None:  # pragma: no cover - compiled
-    """:func:`_nb_pixel_coords`, :func:`_nb_locate` and the sampling of ``window`` (origin at
-    raster pixel ``off_r, off_c``) in one pass: heights into ``out`` (NaN outside), the
-    coverage into ``outside``."""
-    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
-    hi_r = rows - 1.0
-    hi_c = cols - 1.0
-    for k in range(x.size):
-        xx = x[k]
-        yy = y[k]
-        if lonlat:
-            dx = xx - west
-            if not (dx >= 0.0 and dx < 360.0):
-                dx = dx % 360.0
-            xx = west + dx
-        cc = (a * xx + b * yy + c) - PIXEL_CENTRE
-        rr = (d * xx + e * yy + f) - PIXEL_CENTRE
-        if not (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
-                and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
-            out[k] = np.nan
-            outside[k] = True
-            continue
-        rr = min(max(rr, 0.0), hi_r)
-        cc = min(max(cc, 0.0), hi_c)
-        outside[k] = False
-        out[k] = _nb_point_s(window, rr - off_r, cc - off_c, n)

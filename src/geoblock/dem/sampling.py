@@ -156,3 +156,116 @@ def _nb_sample(array: np.ndarray, row: np.ndarray, col: np.ndarray, n: int,
     wc = np.empty(4)
     for k in range(row.size):
         out[k] = _nb_point(array, row[k], col[k], n, wr, wc)
+
+
+# ---------------------------------------------------------------------------- raster DEM blocks
+# locating and sampling points in the cached blocks of a RasterDem (geoblock.dem.raster)
+@numba.njit(nogil=True, cache=True)
+def _nb_pixel_coords(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
+                     row: np.ndarray, col: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Pixel-centre row/col of CRS points ``x, y`` (longitudes wrapped from ``west`` when
+    ``lonlat``), with the inverse geotransform ``inv`` (a, b, c, d, e, f)."""
+    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
+    for k in range(x.size):
+        xx = x[k]
+        yy = y[k]
+        if lonlat:
+            dx = xx - west
+            if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
+                dx = dx % 360.0
+            xx = west + dx
+        col[k] = (a * xx + b * yy + c) - PIXEL_CENTRE
+        row[k] = (d * xx + e * yy + f) - PIXEL_CENTRE
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_locate(row: np.ndarray, col: np.ndarray, rows: int, cols: int, b: int, nbc: int,
+               nearest: bool, keys: np.ndarray) -> tuple[int, int]:  # pragma: no cover
+    """Coverage and block of every point: ``keys`` = block index (``-1`` outside); row/col
+    clipped in place to the outermost centres. Returns (min, max) key of the inside points
+    (``(-1, -1)`` when none)."""
+    kmin = -1
+    kmax = -1
+    hi_r = rows - 1.0
+    hi_c = cols - 1.0
+    for k in range(row.size):
+        r = row[k]
+        c = col[k]
+        if not (r >= -PIXEL_CENTRE and r <= rows - PIXEL_CENTRE
+                and c >= -PIXEL_CENTRE and c <= cols - PIXEL_CENTRE):
+            keys[k] = -1
+            continue
+        r = min(max(r, 0.0), hi_r)
+        c = min(max(c, 0.0), hi_c)
+        row[k] = r
+        col[k] = c
+        if nearest:
+            br = int(math.floor(r + PIXEL_CENTRE)) // b  # the pixel holding the point
+            bc = int(math.floor(c + PIXEL_CENTRE)) // b
+        else:
+            br = min(int(math.floor(r)), rows - 1) // b
+            bc = min(int(math.floor(c)), cols - 1) // b
+        key = br * nbc + bc
+        keys[k] = key
+        if kmin < 0 or key < kmin:
+            kmin = key
+        if key > kmax:
+            kmax = key
+    return kmin, kmax
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_sample_keyed(block: np.ndarray, row: np.ndarray, col: np.ndarray, keys: np.ndarray,
+                     key: int, off_r: float, off_c: float, n: int,
+                     out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at the points of ``key``."""
+    wr = np.empty(4)
+    wc = np.empty(4)
+    for k in range(row.size):
+        if keys[k] == key:
+            out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_sample_index(block: np.ndarray, row: np.ndarray, col: np.ndarray, idx: np.ndarray,
+                     off_r: float, off_c: float, n: int,
+                     out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Sample ``block`` (origin at raster pixel ``off_r, off_c``) at points ``idx``."""
+    wr = np.empty(4)
+    wc = np.empty(4)
+    for m in range(idx.size):
+        k = idx[m]
+        out[k] = _nb_point(block, row[k] - off_r, col[k] - off_c, n, wr, wc)
+
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _nb_sample_window(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool, west: float,
+                      rows: int, cols: int, n: int, window: np.ndarray, off_r: float,
+                      off_c: float, out: np.ndarray,
+                      outside: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`_nb_pixel_coords`, :func:`_nb_locate` and the sampling of ``window`` (origin at
+    raster pixel ``off_r, off_c``) in one pass: heights into ``out`` (NaN outside), the
+    coverage into ``outside``."""
+    a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
+    hi_r = rows - 1.0
+    hi_c = cols - 1.0
+    for k in range(x.size):
+        xx = x[k]
+        yy = y[k]
+        if lonlat:
+            dx = xx - west
+            if not (dx >= 0.0 and dx < 360.0):
+                dx = dx % 360.0
+            xx = west + dx
+        cc = (a * xx + b * yy + c) - PIXEL_CENTRE
+        rr = (d * xx + e * yy + f) - PIXEL_CENTRE
+        if not (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
+                and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
+            out[k] = np.nan
+            outside[k] = True
+            continue
+        rr = min(max(rr, 0.0), hi_r)
+        cc = min(max(cc, 0.0), hi_c)
+        outside[k] = False
+        out[k] = _nb_point_s(window, rr - off_r, cc - off_c, n)

@@ -153,7 +153,8 @@ def open_dem(
     from geoblock.dem.base import DemBase
     from geoblock.dem.filled import FilledDem
     from geoblock.dem.protocol import DemSource
-    from geoblock.dem.raster import VERTICALS, MosaicDem
+    from geoblock.dem.mosaic import MosaicDem
+    from geoblock.dem.raster import VERTICALS
 
     if missing is not None:
         inner = open_dem(source, vertical=vertical, geoid=geoid, nodata=nodata,
@@ -300,7 +301,8 @@ def _from_dict(data: Mapping[str, Any]) -> DemSource:
     from geoblock.dem.constant import ConstantDem
     from geoblock.dem.filled import FilledDem
     from geoblock.dem.geoid import ConstantGeoidDem, find_geoid
-    from geoblock.dem.raster import ArrayDem, MosaicDem, RasterDem
+    from geoblock.dem.mosaic import MosaicDem
+    from geoblock.dem.raster import ArrayDem, RasterDem
 
     kind = data.get("dem")
     try:
