@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from geoblock.errors import MatchError
-from geoblock.match.pipeline import TiePoints
+from geoblock.match.results import TiePoints
 
 
 def _tie_points(n: int) -> TiePoints:
