@@ -321,7 +321,7 @@ def test_core_never_imports_a_plugin():
     [
         ("geoblock.io", "open_model", "geoblock.io.models"),  # through the re-export
         ("geoblock", "coords", "geoblock.coords"),  # a submodule
-        ("geoblock.adjust", "Block", "geoblock.adjust.block"),  # a lazy re-export
+        ("geoblock.adjust", "Block", "geoblock.adjust.problem"),  # a lazy re-export
         ("geoblock.io", "write_ortho", "geoblock.io.images"),
     ],
 )

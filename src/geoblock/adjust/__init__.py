@@ -8,22 +8,18 @@ from typing import TYPE_CHECKING
 from geoblock._lazy import lazy_names
 
 if TYPE_CHECKING:
-    from geoblock.adjust.block import (
-        DEM_CONTROLS,
-        MODES,
-        ROBUST,
-        Block,
+    from geoblock.adjust.block import adjust, check_errors
+    from geoblock.adjust.collocation import Collocation, CollocationCorrection, fit_collocation
+    from geoblock.adjust.methods import METHODS, prepare_model
+    from geoblock.adjust.observations import KINDS, ControlPoints, GroundPoints, ImagePoints
+    from geoblock.adjust.problem import DEM_CONTROLS, MODES, ROBUST, Block
+    from geoblock.adjust.resect import PointResiduals, ResectionResult, resect
+    from geoblock.adjust.results import (
         BlockResult,
         MeasurementResults,
         ParameterEstimates,
         PointResults,
-        adjust,
-        check_errors,
     )
-    from geoblock.adjust.collocation import Collocation, CollocationCorrection, fit_collocation
-    from geoblock.adjust.methods import METHODS, prepare_model
-    from geoblock.adjust.observations import KINDS, ControlPoints, GroundPoints, ImagePoints
-    from geoblock.adjust.resect import PointResiduals, ResectionResult, resect
     from geoblock.adjust.statistics import (
         POINT_KINDS,
         AccuracyStats,
@@ -79,14 +75,14 @@ from geoblock.adjust.resect import resect
 # the rest is imported on first use (PEP 562): the registry imports CollocationCorrection (a
 # model) from here, and a command that only projects must not pay for SciPy's statistics
 _LAZY = {
-    "DEM_CONTROLS": "geoblock.adjust.block",
-    "MODES": "geoblock.adjust.block",
-    "ROBUST": "geoblock.adjust.block",
-    "Block": "geoblock.adjust.block",
-    "BlockResult": "geoblock.adjust.block",
-    "MeasurementResults": "geoblock.adjust.block",
-    "ParameterEstimates": "geoblock.adjust.block",
-    "PointResults": "geoblock.adjust.block",
+    "DEM_CONTROLS": "geoblock.adjust.problem",
+    "MODES": "geoblock.adjust.problem",
+    "ROBUST": "geoblock.adjust.problem",
+    "Block": "geoblock.adjust.problem",
+    "BlockResult": "geoblock.adjust.results",
+    "MeasurementResults": "geoblock.adjust.results",
+    "ParameterEstimates": "geoblock.adjust.results",
+    "PointResults": "geoblock.adjust.results",
     "adjust": "geoblock.adjust.block",
     "check_errors": "geoblock.adjust.block",
     "Collocation": "geoblock.adjust.collocation",

@@ -627,7 +627,6 @@ def ictp_accuracy(
         the same image, or no point is measured in two images.
     """
     from geoblock.dem import localize  # geoblock.dem imports nothing from adjust; keep it lazy
-
     from geoblock.triangulation import measurements  # same layer; lazy like localize
 
     where = "ictp_accuracy"

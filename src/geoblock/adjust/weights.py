@@ -3,19 +3,19 @@ parameters and ground points, and the diagnosis of undetermined unknowns."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoblock import coords
-from geoblock.typing import ArrayLike, Float64Array, StrArray
+from geoblock.typing import ArrayLike, BoolArray, Float64Array, StrArray
 
 if TYPE_CHECKING:
     from geoblock.models.protocol import SensorModel
 
-__all__ = ["check_measured_geometry", "check_not_degenerate", "ground_covariance", "prior_weight",
-           "undetermined"]
+__all__ = ["check_measured_geometry", "check_not_degenerate", "ground_covariance",
+           "parameter_prior", "prior_weight", "undetermined"]
 
 
 def prior_weight(covariance: Float64Array) -> Float64Array:
@@ -180,3 +180,22 @@ def check_not_degenerate(before: SensorModel, after: SensorModel, lon: ArrayLike
             f"{where}: the adjusted model is degenerate: it scales image areas by {ratio:.3g} "
             "against the unadjusted model at the control points (the control measurements "
             "and their ground coordinates do not describe one image geometry); check them")
+
+
+def parameter_prior(model: SensorModel, overrides: Mapping[str, float]
+                    ) -> tuple[BoolArray, Float64Array]:
+    """Adjustable mask (P,) and a-priori covariance (P, P) of a model's parameters, with
+    sigma overrides by name (0: fixed; inf: free)."""
+    params = model.parameters
+    mask = np.array(params.adjustable, dtype=bool)
+    cov = np.array(params.prior_covariance, dtype=np.float64)
+    for name, sigma in overrides.items():
+        k = params.index(name)
+        if sigma == 0:
+            mask[k] = False
+            continue
+        cov[k, :] = 0.0
+        cov[:, k] = 0.0
+        cov[k, k] = float(sigma) ** 2
+        mask[k] = True
+    return mask, cov

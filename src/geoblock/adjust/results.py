@@ -1,0 +1,201 @@
+"""What a block adjustment returns: :class:`BlockResult` and its per-image, per-measurement and
+per-point parts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from geoblock.adjust.statistics import (
+    AccuracyStats,
+    IctpDiscrepancies,
+    PointErrors,
+)
+from geoblock.models.protocol import SensorModel
+from geoblock.typing import (
+    BoolArray,
+    Float64Array,
+    IndexArray,
+    StrArray,
+)
+
+if TYPE_CHECKING:
+    pass
+
+__all__ = ["BlockResult", "MeasurementResults", "ParameterEstimates", "PointResults"]
+
+
+# ================================================================================ results
+@dataclass(frozen=True, eq=False)
+class ParameterEstimates:
+    """Adjusted parameters of one image.
+
+    ``names`` (K,), ``values`` and ``prior`` (K,) in each parameter's unit, ``sigmas`` (K,)
+    posterior standard deviations, ``prior_sigmas`` (K,), ``units`` (K,).
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    prior: Float64Array
+    values: Float64Array
+    prior_sigmas: Float64Array
+    sigmas: Float64Array
+
+
+@dataclass(frozen=True, eq=False)
+class MeasurementResults:
+    """One row per image measurement of the block (every kind), arrays (M,).
+
+    Attributes
+    ----------
+    id, image, kind : ndarray of str
+    row, col : ndarray
+        Measured, pixels.
+    v_row, v_col : ndarray
+        Residuals, observed minus computed with the adjusted models, pixels (ICPs: at the
+        surveyed ground point; ICTPs: NaN).
+    weight : ndarray
+        Robust weight factor of the last iteration (0: rejected; NaN: not in the solution).
+    redundancy_row, redundancy_col : ndarray
+        Redundancy numbers (the diagonal of ``I - W J Q J^T``), NaN outside the solution.
+    test : ndarray
+        Externally studentised test statistic (chi-square, 2 degrees of freedom).
+    flagged : ndarray of bool
+        Blunder flag.
+    ambiguous : ndarray of bool
+        Flagged in a point with two rays only: it cannot be told from its partner.
+    """
+
+    id: StrArray
+    image: StrArray
+    kind: StrArray
+    row: Float64Array
+    col: Float64Array
+    v_row: Float64Array
+    v_col: Float64Array
+    weight: Float64Array
+    redundancy_row: Float64Array
+    redundancy_col: Float64Array
+    test: Float64Array
+    flagged: BoolArray
+    ambiguous: BoolArray
+
+
+@dataclass(frozen=True, eq=False)
+class PointResults:
+    """One row per ground point in the solution (GCPs and TPs), arrays (J,).
+
+    ``lon, lat, h``: adjusted (degrees, metres above the ellipsoid); ``covariance`` (J, 3, 3)
+    posterior covariance along local east, north, up at the point (square metres);
+    ``images`` the number of images measuring it; ``dem_height`` the DEM under the adjusted
+    point (NaN without a DEM), ``status`` ``ok``, ``no-dem`` or ``failed`` (a projection
+    failed in the last iteration).
+    """
+
+    id: StrArray
+    kind: StrArray
+    lon: Float64Array
+    lat: Float64Array
+    h: Float64Array
+    covariance: Float64Array
+    images: IndexArray
+    dem_height: Float64Array
+    status: StrArray
+
+    @property
+    def sigma_enu(self) -> Float64Array:
+        """(J, 3) posterior standard deviations along east, north, up, metres."""
+        return np.sqrt(np.einsum("jii->ji", self.covariance))
+
+
+@dataclass(frozen=True, eq=False)
+class BlockResult:
+    """Outcome of :func:`adjust`.
+
+    Attributes
+    ----------
+    models : dict of str to SensorModel
+        The adjusted model of every image.
+    parameters : dict of str to ParameterEstimates
+    covariance : ndarray, (K, K)
+        Posterior covariance of all adjusted parameters, in the order of ``parameter_index``.
+    parameter_index : list of (str, str)
+        ``(image, parameter name)`` of each row of ``covariance``.
+    points : PointResults
+    measurements : MeasurementResults
+    check : PointErrors
+        Per measurement of GCPs and ICPs: the measured image point located on the surface at
+        the point's surveyed height through the adjusted model, minus the surveyed point
+        (metres east/north), with the image residuals.
+    predicted_sigma : ndarray, (N, 2)
+        For the rows of ``check``: the standard deviation of that error along east and north
+        that the posterior covariance predicts (parameters, image measurement, survey).
+    ictp : IctpDiscrepancies or None
+        ICTP relative accuracy through the adjusted models and the DEM.
+    sigma0 : float
+        Posterior standard deviation of unit weight.
+    dof : int
+    converged : bool
+    iterations : int
+    history : list of dict
+        Per iteration: cost, sigma0, step size, damping, measurements rejected.
+    mode, dem_control, robust : str
+    notes : list of str
+        What the user should know (assumed values, dropped points ...).
+    """
+
+    models: dict[str, SensorModel]
+    parameters: dict[str, ParameterEstimates]
+    covariance: Float64Array
+    parameter_index: list[tuple[str, str]]
+    points: PointResults
+    measurements: MeasurementResults
+    check: PointErrors
+    predicted_sigma: Float64Array
+    ictp: IctpDiscrepancies | None
+    sigma0: float
+    dof: int
+    converged: bool
+    iterations: int
+    history: list[dict[str, Any]] = field(repr=False)
+    mode: str = "block"
+    dem_control: str = "observation"
+    robust: str = "none"
+    notes: list[str] = field(default_factory=list)
+
+    # ---- statistics
+    def stats(self, kind: str, image: str | None = None) -> AccuracyStats:
+        """Ground accuracy (metres) at ``gcp`` or ``icp`` measurements, of one image or all."""
+        sel = self.check.select(kind=kind, image=image)
+        return sel.stats()
+
+    def stats_by_image(self, kind: str) -> dict[str, AccuracyStats]:
+        """:meth:`stats` per image (images that have such points)."""
+        out: dict[str, AccuracyStats] = {}
+        for image in self.models:
+            sel = self.check.select(kind=kind, image=image)
+            if len(sel):
+                out[image] = sel.stats()
+        return out
+
+    def ictp_by_pair(self) -> dict[tuple[str, str], AccuracyStats]:
+        """ICTP discrepancy statistics per pair of images (Teo et al.'s relative accuracy)."""
+        return {} if self.ictp is None else self.ictp.by_pair()
+
+    def report_text(self) -> str:
+        """A plain-text summary: convergence, sigma0, GCP/ICP/ICTP tables."""
+        lines = [f"block adjustment ({self.mode}, DEM control {self.dem_control}, robust "
+                 f"{self.robust}): {'converged' if self.converged else 'NOT converged'} in "
+                 f"{self.iterations} iterations, sigma0 {self.sigma0:.4g}, dof {self.dof}"]
+        for kind in ("gcp", "icp"):
+            for image, st in self.stats_by_image(kind).items():
+                lines.append(f"{kind.upper():4s} {image:12s} {st.as_row()}")
+        for (a, b), st in self.ictp_by_pair().items():
+            lines.append(f"ICTP {a} & {b}: {st.as_row()}")
+        flagged = int(self.measurements.flagged.sum())
+        if flagged:
+            lines.append(f"{flagged} measurement(s) flagged as blunders")
+        lines.extend(f"note: {n}" for n in self.notes)
+        return "\n".join(lines)
