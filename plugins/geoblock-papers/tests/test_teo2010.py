@@ -17,6 +17,7 @@ pytest.importorskip("geoblock_rpc", reason="the RFM method needs the geoblock-rp
 
 from click.testing import CliRunner  # noqa: E402
 from geoblock_papers import _teo_block as tb  # noqa: E402
+from geoblock_papers import _teo_report as tr  # noqa: E402
 from geoblock_papers import chen2008, teo2010  # noqa: E402
 
 from geoblock.cli.main import build_cli  # noqa: E402
@@ -110,7 +111,7 @@ def test_teo2010_report_puts_each_table_beside_the_papers(runs):
 def test_results_json_holds_the_papers_and_our_numbers(runs):
     results = runs["teo2010"]["data"]["results"]
     table = results["table_III"]
-    assert table["columns"] == tb.PAIR_COLUMNS
+    assert table["columns"] == tr.PAIR_COLUMNS
     rows = {r["label"]: r for r in table["rows"]}
     for (method, label), cells in teo2010.TABLE_III.items():
         row = rows[f"{method} {label}"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from geoblock_papers import _teo_block as tb
+from geoblock_papers import _teo_report as tr
 from geoblock_papers.report import Report
 
 TITLE = ("Chen, Teo & Lo (2008): elevation-controlled block adjustment of three weakly "
@@ -60,7 +61,7 @@ TABLE_5 = {
     ("RFM", "GCP"): ["4.18", "2.52", "4.40", "3.75", "5.28", "4.86"],
     ("RFM", "ICP"): ["4.05", "2.55", "5.83", "8.13", "4.90", "6.83"],
 }
-PAPER = tb.PaperTables(
+PAPER = tr.PaperTables(
     name="Chen et al.",
     single_ictp={m: TABLE_2[(m, "single ICTP")] for m in tb.METHODS},
     block_ictp={m: TABLE_3[(m, "block ICTP")] for m in tb.METHODS},
@@ -75,28 +76,28 @@ def run(report: Report, *, full: bool, seeds: Sequence[int],
     """Simulate and adjust once per seed (shared with teo2010) and fill ``report``."""
     data = tb.outcomes(seeds, full, progress)
     progress("  tables and figures")
-    tb.add_findings(report, data, PAPER)
+    tr.add_findings(report, data, PAPER)
 
-    report.section("Set-up (Table 1)", tb.describe_setup(data, full))
-    report.grid("table_1", ["strip 1", "strip 2", "strip 3"], tb.setup_grid(data, TABLE_1),
+    report.section("Set-up (Table 1)", tr.describe_setup(data, full))
+    report.grid("table_1", ["strip 1", "strip 2", "strip 3"], tr.setup_grid(data, TABLE_1),
                 title="Table 1: related information of the test data, per strip", label="")
     report.grid("table_1_ties", ["strips 1 & 2", "strips 2 & 3"],
-                tb.ties_grid(data, TABLE_1_TIES), title="Tie points per overlap (Table 1; "
+                tr.ties_grid(data, TABLE_1_TIES), title="Tie points per overlap (Table 1; "
                 "its TP counts differ from Table 3's 19 and 13)", decimals=1,
                 note="The paper's images are 24000 x 24000 px at 2.5 m, its DEM the 40 m "
                 "Topographic Data Base of Taiwan over 1-3700 m.")
 
     report.section("Geometrical consistency without block adjustment (Table 2)")
-    report.grid("table_2", tb.PAIR_COLUMNS,
-                tb.consistency_grid(data, TABLE_2, ["single ICTP"]),
+    report.grid("table_2", tr.PAIR_COLUMNS,
+                tr.consistency_grid(data, TABLE_2, ["single ICTP"]),
                 title="Table 2: ICTP RMSE between strips, independent (single) adjustment "
                 "(metres)",
                 note="The paper: 'For strip 1 and 2, the RMSE of ICTP before the block "
                 "adjustment is around 11.6m and 8.7m'; for strips 2 and 3 '29.9m and 30.0m'. "
                 "Ours are smaller, DG's most (see the findings).")
     report.section("Geometrical consistency with block adjustment (Table 3)")
-    report.grid("table_3", tb.PAIR_COLUMNS,
-                tb.consistency_grid(data, TABLE_3, ["block TP", "block ICTP"]),
+    report.grid("table_3", tr.PAIR_COLUMNS,
+                tr.consistency_grid(data, TABLE_3, ["block TP", "block ICTP"]),
                 title="Table 3: TP and ICTP RMSE between strips, block adjustment (metres)",
                 note="The paper: after block adjustment 2.0 and 1.7 m (strips 1 & 2), 4.4 and "
                 "5.2 m (strips 2 & 3), 'the difference of these three methods is less than "
@@ -104,18 +105,18 @@ def run(report: Report, *, full: bool, seeds: Sequence[int],
                 "for every method; the paper's larger strips 2 & 3 figures fit a poorer DEM "
                 "over the mountains (the poor-DEM run below).")
     report.section("Absolute accuracy without block adjustment (Table 4)")
-    report.grid("table_4", tb.STRIP_COLUMNS, tb.absolute_grid(data, "single", TABLE_4),
+    report.grid("table_4", tr.STRIP_COLUMNS, tr.absolute_grid(data, "single", TABLE_4),
                 title="Table 4: GCP and ICP RMSE, independent (single) adjustment (metres)",
                 note="The paper: 'The difference of these three methods is less than 1.25m "
                 "(i.e. 0.5 pixels) for all strips'. Our ICP errors include the ICPs' 3 m "
                 "survey noise.")
     report.section("Absolute accuracy with block adjustment (Table 5)")
-    report.grid("table_5", tb.STRIP_COLUMNS, tb.absolute_grid(data, "block", TABLE_5),
+    report.grid("table_5", tr.STRIP_COLUMNS, tr.absolute_grid(data, "block", TABLE_5),
                 title="Table 5: GCP and ICP RMSE, block adjustment (metres)",
                 note="The paper: 'The absolute accuracy of these three strips are from 2.2m to "
                 "8.8m.'")
-    tb.add_dem_section(report, data)
+    tr.add_dem_section(report, data)
     report.section("Figures")
-    tb.add_figures(report, data, PAPER)
+    tr.add_figures(report, data, PAPER)
     report.section("Not simulated", "The mosaics (Figs. 7-8) are `geoblock demo`'s subject.")
-    tb.record_results(report, data)
+    tr.record_results(report, data)

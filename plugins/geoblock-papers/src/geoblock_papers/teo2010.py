@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from geoblock_papers import _teo_block as tb
+from geoblock_papers import _teo_report as tr
 from geoblock_papers.report import Report
 
 TITLE = ("Teo et al. (2010): DEM-aided block adjustment of three weakly convergent SPOT-5 "
@@ -65,7 +66,7 @@ TABLE_VI = {
     ("RFM", "GCP"): ["3.68", "1.95", "3.39", "2.16", "5.51", "6.20"],
     ("RFM", "ICP"): ["4.47", "2.54", "4.45", "8.24", "5.94", "3.57"],
 }
-PAPER = tb.PaperTables(
+PAPER = tr.PaperTables(
     name="Teo et al.",
     single_ictp={m: TABLE_III[(m, "single ICTP")] for m in tb.METHODS},
     block_ictp={m: TABLE_III[(m, "block ICTP")] for m in tb.METHODS},
@@ -80,20 +81,20 @@ def run(report: Report, *, full: bool, seeds: Sequence[int],
     """Simulate and adjust once per seed (shared with chen2008) and fill ``report``."""
     data = tb.outcomes(seeds, full, progress)
     progress("  tables and figures")
-    tb.add_findings(report, data, PAPER)
+    tr.add_findings(report, data, PAPER)
 
-    report.section("Set-up (Table I)", tb.describe_setup(data, full))
-    report.grid("table_I", ["strip 1", "strip 2", "strip 3"], tb.setup_grid(data, TABLE_I),
+    report.section("Set-up (Table I)", tr.describe_setup(data, full))
+    report.grid("table_I", ["strip 1", "strip 2", "strip 3"], tr.setup_grid(data, TABLE_I),
                 title="Table I: test data per strip (paper: case I)", label="")
     report.grid("table_I_ties", ["strips 1 & 2", "strips 2 & 3"],
-                tb.ties_grid(data, TABLE_I_TIES), title="Tie points per overlap (paper: "
+                tr.ties_grid(data, TABLE_I_TIES), title="Tie points per overlap (paper: "
                 "Table I for the TPs, Table III for the ICTPs)",
                 note="The paper's images are 24000 x 24000 px (supermode), its DEM the 40 m "
                 "Topographic Data Base of Taiwan over 0-3800 m. Our ICP counts include the "
                 "ICPs of a neighbouring strip seen in the overlap.", decimals=1)
 
     report.section("On-board accuracy before adjustment (Table II)")
-    report.grid("table_II", tb.STRIP_COLUMNS, tb.onboard_grid(data, TABLE_II),
+    report.grid("table_II", tr.STRIP_COLUMNS, tr.onboard_grid(data, TABLE_II),
                 title="Table II: absolute accuracy before adjustment, case I (metres)",
                 note="The simulated on-board errors are set to the paper's 2D RMSE per strip "
                 "(33.6, 12.0 and 42.3 m); their direction, hence the split between E and N and "
@@ -101,8 +102,8 @@ def run(report: Report, *, full: bool, seeds: Sequence[int],
                 "in the paper the error is mostly a bias (mean close to RMSE).")
 
     report.section("Geometrical consistency between strips (Table III)")
-    report.grid("table_III", tb.PAIR_COLUMNS,
-                tb.consistency_grid(data, TABLE_III, list(tb.CONSISTENCY_ROWS)),
+    report.grid("table_III", tr.PAIR_COLUMNS,
+                tr.consistency_grid(data, TABLE_III, list(tr.CONSISTENCY_ROWS)),
                 title="Table III: TP and ICTP RMSE between strips, case I (metres)",
                 note="Block adjustment brings the strips together to the floor that pointing "
                 "noise and DEM error leave (the true models' row) for all three methods. "
@@ -111,19 +112,19 @@ def run(report: Report, *, full: bool, seeds: Sequence[int],
                 "larger than ours because its DEM was poorer over the mountains (the "
                 "poor-DEM run below).")
     report.section("Absolute accuracy, single adjustment (Table V)")
-    report.grid("table_V", tb.STRIP_COLUMNS, tb.absolute_grid(data, "single", TABLE_V),
+    report.grid("table_V", tr.STRIP_COLUMNS, tr.absolute_grid(data, "single", TABLE_V),
                 title="Table V: GCP and ICP RMSE, single adjustment, case I (metres)",
                 note="Our ICP errors include the 3 m survey noise of the ICPs, as the papers' "
                 "1:5000 map coordinates do.")
     report.section("Absolute accuracy, block adjustment (Table VI)")
-    report.grid("table_VI", tb.STRIP_COLUMNS, tb.absolute_grid(data, "block", TABLE_VI),
+    report.grid("table_VI", tr.STRIP_COLUMNS, tr.absolute_grid(data, "block", TABLE_VI),
                 title="Table VI: GCP and ICP RMSE, block adjustment, case I (metres)")
-    tb.add_dem_section(report, data)
+    tr.add_dem_section(report, data)
     report.section("Figures")
-    tb.add_figures(report, data, PAPER)
+    tr.add_figures(report, data, PAPER)
     report.section(
         "Not simulated",
         "Case II (two scenes per strip, 24000 x 48000 px: Tables IV, VII and VIII) and the "
         "mosaics (Figs. 13-14) are not simulated: the `teo2010-spot5` preset has one scene "
         "per strip, and mosaicking is `geoblock demo`'s subject.")
-    tb.record_results(report, data)
+    tr.record_results(report, data)
