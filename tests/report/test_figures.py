@@ -139,3 +139,37 @@ def test_save_figure_svg_and_local_positions(tmp_path, points):
 def test_nice_number():
     assert [nice_number(v) for v in (0.7, 3.0, 7.9, 12.0, 480.0)] == [0.5, 2.0, 5.0, 10.0, 200.0]
     assert nice_number(3.0, round_down=False) == 5.0 and nice_number(0.0) == 1.0
+
+
+def test_correction_curve_plot_band_truth_and_rms(tmp_path):
+    from geoblock.report import correction_curve_plot
+
+    t = np.linspace(-2.0, 2.0, 200)
+    truth = np.stack([1e-6 * np.sin(2 * np.pi * f * t) for f in (0.5, 1.0, 2.0)], axis=-1)
+    value = truth + 1e-7  # a 0.1 urad offset on every axis
+    sigma = np.full_like(truth, 5e-8)
+    path = tmp_path / "curve.png"
+    fig = correction_curve_plot(t, value, sigma, truth, path=path, title="image 1")
+    assert path.read_bytes()[:8] == PNG
+    axes = fig.get_axes()
+    assert [a.get_ylabel() for a in axes] == ["roll (µrad)", "pitch (µrad)", "yaw (µrad)"]
+    for ax in axes:
+        bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
+        assert len(bands) == 1  # the sigma band
+        # the band spans +-2 sigma = +-0.1 urad about the recovered curve, in urad
+        ys = bands[0].get_paths()[0].vertices[:, 1]
+        assert ys.max() - ys.min() == pytest.approx(2.0 + 0.2, abs=0.05)
+        labels = ax.get_legend_handles_labels()[1]
+        assert any("0.1 µrad RMS" in label for label in labels), labels
+
+
+def test_correction_curve_plot_errors():
+    from geoblock.report import correction_curve_plot
+
+    t = np.arange(5.0)
+    with pytest.raises(ShapeMismatchError, match=r"value must be \(5, 3\)"):
+        correction_curve_plot(t, np.zeros((4, 3)))
+    with pytest.raises(ShapeMismatchError, match=r"truth must be \(5, 3\)"):
+        correction_curve_plot(t, np.zeros((5, 3)), truth=np.zeros((5, 2)))
+    fig = correction_curve_plot(t, np.zeros(5), axes_names=("along",), unit="m", scale=1.0)
+    assert [a.get_ylabel() for a in fig.get_axes()] == ["along (m)"]

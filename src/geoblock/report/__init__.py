@@ -11,6 +11,7 @@ arrays), never adjustment or simulator objects, so any workflow can report with 
 from geoblock.report.adjustment import report_markdown, result_dict, write_result
 from geoblock.report.figures import (
     KIND_STYLES,
+    correction_curve_plot,
     error_vector_plot,
     residual_vs_distance,
     rmse_vs_gcp_count,
@@ -32,6 +33,7 @@ __all__ = [
     "IMAGE_COLUMNS",
     "KIND_STYLES",
     "comparison_table",
+    "correction_curve_plot",
     "error_vector_plot",
     "residual_vs_distance",
     "report_markdown",

@@ -7,6 +7,9 @@
   with a confidence band or error bars over repetitions (Aguilar et al., Figs. 3, 6, 7).
 * :func:`residual_vs_distance`: residuals against the distance from the image centre with a
   least-squares line and its R² (Aguilar et al., Fig. 4).
+* :func:`correction_curve_plot`: a time-dependent correction an adjustment recovered (the
+  attitude corrections of a jitter parameter set), one panel per axis, with its posterior
+  sigma band and, on simulated data, the truth.
 
 Each function takes plain arrays, returns the :class:`matplotlib.figure.Figure` and, given
 ``path``, saves it (PNG, or the format of the suffix) through :func:`save_figure`.
@@ -33,6 +36,7 @@ from geoblock.typing import ArrayLike, Float64Array
 
 __all__ = [
     "KIND_STYLES",
+    "correction_curve_plot",
     "error_vector_plot",
     "nice_number",
     "residual_vs_distance",
@@ -446,4 +450,95 @@ def residual_vs_distance(
         axes[0].set_ylabel(ylabel)
         if title:
             axes[0].set_title(title, fontsize=11)
+    return _finish(fig, path, dpi)
+
+
+# --------------------------------------------------------------------------- correction curves
+def correction_curve_plot(
+    time_s: ArrayLike,
+    value: ArrayLike,
+    sigma: ArrayLike | None = None,
+    truth: ArrayLike | None = None,
+    *,
+    axes_names: tuple[str, ...] = ("roll", "pitch", "yaw"),
+    unit: str = "µrad",
+    scale: float = 1e6,
+    band: float = 2.0,
+    title: str | None = None,
+    xlabel: str = "Time from the image centre (s)",
+    figsize: tuple[float, float] | None = None,
+    path: str | os.PathLike[str] | None = None,
+    dpi: int = 150,
+) -> Figure:
+    """A recovered correction against time, one panel per axis, with a sigma band and the truth.
+
+    Parameters
+    ----------
+    time_s : array_like, (T,)
+        Times, seconds (any origin; the axis is labelled by ``xlabel``).
+    value : array_like, (T, A)
+        The estimated correction per axis, in the unit of the data (radians for attitude).
+    sigma : array_like, (T, A), optional
+        Its posterior standard deviation; a band of ``+-band * sigma`` is shaded.
+    truth : array_like, (T, A), optional
+        The injected correction (simulated data), drawn dashed; the legend gives the RMS of
+        ``value - truth`` per axis.
+    axes_names : tuple of str, (A,)
+        Panel titles.
+    unit, scale : str, float
+        The plotted unit and the factor from the data's unit to it (default radians to µrad).
+    band : float
+        Half-width of the shaded band in sigmas (default 2: ~95 %).
+    title, xlabel, figsize, path, dpi
+        As :func:`error_vector_plot`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ShapeMismatchError
+        ``value``, ``sigma`` or ``truth`` is not (T, A) with ``T = len(time_s)`` and
+        ``A = len(axes_names)``.
+    """
+    where = "correction_curve_plot"
+    t = np.asarray(time_s, dtype=np.float64).ravel()
+    k = len(axes_names)
+
+    def as_table(name: str, a: ArrayLike | None) -> Float64Array | None:
+        if a is None:
+            return None
+        arr = np.asarray(a, dtype=np.float64)
+        if arr.ndim == 1 and k == 1:
+            arr = arr[:, None]
+        if arr.shape != (t.size, k):
+            raise ShapeMismatchError(f"{where}: {name} must be ({t.size}, {k}) (times, axes), "
+                                     f"got {arr.shape}")
+        return arr * scale
+
+    v = as_table("value", value)
+    s = as_table("sigma", sigma)
+    tr = as_table("truth", truth)
+    assert v is not None
+    fig = Figure(figsize=figsize or (7.0, 1.9 * k + 0.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    panels: list[Axes] = list(fig.subplots(k, 1, sharex=True, squeeze=False).ravel())
+    for i, (ax, name) in enumerate(zip(panels, axes_names, strict=True)):
+        if s is not None:
+            ax.fill_between(t, v[:, i] - band * s[:, i], v[:, i] + band * s[:, i],
+                            color="#1f5fa8", alpha=0.2, linewidth=0,
+                            label=f"±{band:g} σ (posterior)")
+        ax.plot(t, v[:, i], color="#1f5fa8", linewidth=1.4, label="recovered")
+        if tr is not None:
+            ok = np.isfinite(tr[:, i]) & np.isfinite(v[:, i])
+            rms = float(np.sqrt(np.mean((v[ok, i] - tr[ok, i]) ** 2))) if ok.any() else np.nan
+            ax.plot(t, tr[:, i], color="#c0392b", linewidth=1.2, linestyle="--",
+                    label=f"truth (recovered − truth: {rms:.3g} {unit} RMS)")
+        ax.set_ylabel(f"{name} ({unit})", fontsize=9)
+        ax.grid(True, color="#dddddd", linewidth=0.6)
+        ax.legend(fontsize=7, frameon=False, loc="upper right")
+    panels[-1].set_xlabel(xlabel)
+    if title:
+        fig.suptitle(title, fontsize=11)
     return _finish(fig, path, dpi)
