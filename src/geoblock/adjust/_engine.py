@@ -13,7 +13,12 @@ import numpy as np
 import scipy.stats
 
 from geoblock import coords
-from geoblock.adjust.normal import NormalSystem, SingularPoints, measurement_pairs
+from geoblock.adjust.normal import (
+    NormalSystem,
+    SingularPoints,
+    compress_columns,
+    measurement_pairs,
+)
 from geoblock.adjust.observations import ImagePoints, lookup
 from geoblock.adjust.weights import (
     check_measured_geometry,
@@ -409,10 +414,11 @@ class _Engine:
     def linearize(self, x: Float64Array, pts: Float64Array, ev: _Evaluation) -> NormalSystem:
         s = self.s
         m_count = s.obs.shape[0]
-        kmax = s.gidx.shape[1]
-        a = np.zeros((m_count, 2, kmax))
         b = np.zeros((m_count, 2, 3))
         rot_t = s.frame.rotation.T  # d ECEF / d local
+        # each measurement's parameter partials in the columns it touches (compress_columns):
+        # a model whose parameters act locally (splines in time) fills a few of its image's
+        parts = []
         for i, model in enumerate(ev.models):
             mine = np.flatnonzero(s.image_of == i)
             if mine.size == 0:
@@ -420,9 +426,16 @@ class _Engine:
             j = s.point_of[mine]
             lon, lat, h = ev.lon[j], ev.lat[j], ev.h[j]
             if s.adj[i].size:
-                a[mine, :, : s.adj[i].size] = model.partials_parameters(lon, lat, h)[
-                    ..., s.adj[i]]
+                partials = model.partials_parameters(lon, lat, h)[..., s.adj[i]]
+                partials[~ev.ok[mine]] = 0.0  # as the whitening below makes them
+                parts.append((mine, *compress_columns(partials, s.gidx[i, : s.adj[i].size])))
             b[mine] = model.partials_ground(lon, lat, h) @ rot_t
+        kc = max((c.shape[1] for _, _, c in parts), default=0)
+        a = np.zeros((m_count, 2, kc))
+        cols = np.full((m_count, kc), -1, np.intp)
+        for mine, a_i, c_i in parts:
+            a[mine, :, : c_i.shape[1]] = a_i
+            cols[mine, : c_i.shape[1]] = c_i
         ok = ev.ok[:, None, None]
         # whitened by the a-priori sigmas (kept for the statistics), then by the robust weights
         a = np.where(ok, np.nan_to_num(a / s.sigma[:, :, None]), 0.0)
@@ -440,7 +453,7 @@ class _Engine:
         return NormalSystem(
             n_params=s.n_params, gidx=s.gidx, image_of=s.image_of, point_of=s.point_of,
             a=a, b=b, v=vw, n_pp_prior=s.prior_w, b_p_prior=s.prior_w @ (s.prior_x - x),
-            n_xx_extra=n_extra, b_x_extra=b_extra, pairs=self.pairs,
+            n_xx_extra=n_extra, b_x_extra=b_extra, pairs=self.pairs, cols=cols,
         )
 
     # ------------------------------------------------------------------ diagnosis

@@ -284,16 +284,16 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         point_parts.append({"id": s.p_id, "kind": s.p_kind, "lon": ev.lon, "lat": ev.lat,
                             "h": ev.h, "cov": cov_enu, "images": s.n_images, "dem": dem_h,
                             "status": status})
-    k = sum(b.shape[0] for b in cov_blocks)
-    covariance = np.zeros((k, k))
-    o = 0
-    for b in cov_blocks:
-        covariance[o:o + b.shape[0], o:o + b.shape[0]] = b
-        o += b.shape[0]
     if mode == "block":  # one solution: the full covariance, cross-image terms included
-        dof_k = dof
         var0 = cost / dof if dof > 0 else 1.0
         covariance = solutions[0][2].q_pp * var0
+    else:  # independent images: block diagonal
+        k = sum(b.shape[0] for b in cov_blocks)
+        covariance = np.zeros((k, k))
+        o = 0
+        for b in cov_blocks:
+            covariance[o:o + b.shape[0], o:o + b.shape[0]] = b
+            o += b.shape[0]
     sigma0 = math.sqrt(cost / dof) if dof > 0 else float("nan")
 
     # blunder flags

@@ -11,16 +11,21 @@ point blocks are inverted per point (``C_j``) and the point unknowns eliminated:
 
 ``S`` is assembled from the pairs of measurements of each point (a point seen by ``n``
 images adds ``n^2`` blocks). It is solved densely (Cholesky) up to :data:`DENSE_LIMIT`
-parameters, and sparsely above; the point steps follow by back-substitution.
+parameters, and sparsely above (its triplets built for runs of points,
+:data:`SPARSE_CHUNK_TRIPLETS` at a time); the point steps follow by back-substitution.
 
 Everything is vectorised over measurements and points: no Python loop runs over either.
-Parameter blocks are padded to the largest ``K_i`` (``Kmax``); padded columns are zero and
-never scattered.
+Each measurement carries its parameter partials in the columns it touches, with their global
+indices (``cols`` (M, Kc), padded with -1 to the largest count ``Kc``; padded columns are zero
+and never scattered): an image's adjustable parameters padded to the largest ``K_i``
+(``Kc = Kmax``, the default), or, through :func:`compress_columns`, only the nonzero ones, so
+that parameters acting locally (splines in time, whose knots a measurement touches four per
+axis) cost ``Kc^2`` per measurement and per pair, not ``Kmax^2``.
 
 Two implementations compute the same quantities: numba kernels that loop over measurements
 and over each point's measurements (:data:`USE_NUMBA`, the default), and the vectorised
 numpy reference (per-pair blocks gathered and scattered with ``bincount``/``add.at``), which
-the tests hold the kernels to. The kernels avoid the reference's (pairs, Kmax, Kmax)
+the tests hold the kernels to. The kernels avoid the reference's (pairs, Kc, Kc)
 temporaries and its scatter; the Schur complement is accumulated from each point's pairs
 ``a <= b`` (the other half by symmetry).
 """
@@ -40,7 +45,7 @@ from numba import njit
 from geoblock.typing import BoolArray, Float64Array, IndexArray
 
 __all__ = ["DENSE_LIMIT", "USE_NUMBA", "NormalSystem", "Pairs", "SingularPoints",
-           "measurement_pairs"]
+           "compress_columns", "measurement_pairs"]
 
 #: up to this many parameters the reduced system is solved densely
 DENSE_LIMIT = 4000
@@ -50,6 +55,9 @@ USE_NUMBA = True
 #: thread (a numba Cholesky): as fast as LAPACK's at this size, and immune to the wake-up
 #: delays of BLAS's worker threads competing with numba's for the cores
 SERIAL_CHOLESKY_LIMIT = 400
+#: above DENSE_LIMIT, the Schur complement's triplets are built for runs of points of at most
+#: this many at a time (24 bytes each) and summed into the sparse reduced system
+SPARSE_CHUNK_TRIPLETS = 1 << 22
 
 F64: TypeAlias = Float64Array
 Idx: TypeAlias = IndexArray
@@ -100,6 +108,71 @@ def _by_point(point_of: np.ndarray, n_points: int, pairs: Pairs) -> tuple[np.nda
     return order, np.concatenate([[0], np.cumsum(counts)]).astype(np.intp)
 
 
+def compress_columns(partials: np.ndarray, columns: np.ndarray
+                     ) -> tuple[Float64Array, IndexArray]:
+    """Each measurement's parameter partials reduced to the columns it touches.
+
+    A measurement's row of the design matrix is nonzero in a few parameters only when a
+    model's parameters act locally (a spline in time touches four knots per axis); the
+    normal equations then need only those columns. Column order is kept, so a dense row
+    comes back unchanged.
+
+    Parameters
+    ----------
+    partials : ndarray, (N, 2, K)
+        Parameter partials of ``N`` measurements (any unit).
+    columns : ndarray of intp, (K,) or (N, K)
+        Global index of each column in the parameter vector (-1: none, dropped).
+
+    Returns
+    -------
+    a : ndarray, (N, 2, Kc)
+        The partials of the columns where either of a measurement's two rows is nonzero
+        (NaN counts as zero, as the engine's whitening makes it), zero-padded to ``Kc``,
+        the largest count over the measurements.
+    cols : ndarray of intp, (N, Kc)
+        Their global indices, -1 in the padding.
+    """
+    p = np.asarray(partials, dtype=np.float64)
+    n, _, k = p.shape
+    cols_in = np.broadcast_to(np.asarray(columns, dtype=np.intp), (n, k))
+    nz = np.any((p != 0.0) & ~np.isnan(p), axis=1) & (cols_in >= 0)  # (N, K)
+    kc = int(nz.sum(axis=1).max(initial=0))
+    rows, src = np.nonzero(nz)
+    pos = (np.cumsum(nz, axis=1) - 1)[rows, src]
+    a = np.zeros((n, 2, kc))
+    cols = np.full((n, kc), -1, np.intp)
+    a[rows, :, pos] = p[rows, :, src]
+    cols[rows, pos] = cols_in[rows, src]
+    return a, cols
+
+
+def _cholesky_inverse(scaled: F64) -> F64 | None:
+    """The inverse of an exactly symmetric positive definite matrix by LAPACK's ``potrf`` and
+    ``potri``, overwriting ``scaled``; None if it is not positive definite."""
+    # symmetric: the transpose is the Fortran-ordered array LAPACK works on in place
+    factor, info = scipy.linalg.lapack.dpotrf(scaled.T, lower=True, clean=True,
+                                              overwrite_a=True)
+    del scaled
+    if info != 0:
+        return None
+    low, info = scipy.linalg.lapack.dpotri(factor, lower=True, overwrite_c=True)
+    del factor
+    if info != 0:
+        return None
+    inv = low + low.T  # the upper triangle of low is zero (clean)
+    np.fill_diagonal(inv, np.diag(low))
+    return inv
+
+
+def _chunks(weights: IndexArray, budget: int) -> IndexArray:
+    """Boundaries ``0 = e_0 < e_1 < ... = n`` splitting ``weights`` (n,) greedily into runs of
+    total at most ``budget`` (an item heavier than that makes a run of its own)."""
+    out = np.empty(weights.size + 1, np.intp)
+    used = _nb_chunks(np.ascontiguousarray(weights, dtype=np.int64), int(budget), out)
+    return out[:used]
+
+
 @dataclass
 class NormalSystem:
     """The normal equations of one linearisation, and their reduced solution.
@@ -112,8 +185,9 @@ class NormalSystem:
         Global parameter index of each image's padded columns (-1: padding).
     image_of, point_of : ndarray of intp, (M,)
         The image and point of each measurement.
-    a : ndarray, (M, 2, Kmax)
-        Whitened parameter partials ``W^(1/2) A``.
+    a : ndarray, (M, 2, Kc)
+        Whitened parameter partials ``W^(1/2) A`` in the columns ``cols`` (by default the
+        image's padded columns ``gidx[image_of]``, ``Kc = Kmax``).
     b : ndarray, (M, 2, 3)
         Whitened point partials ``W^(1/2) B``.
     v : ndarray, (M, 2)
@@ -124,6 +198,11 @@ class NormalSystem:
         Weights on the points other than image measurements (ground pseudo-observations, DEM
         rows), ``b_x_extra`` (J, 3) their right-hand sides.
     pairs : Pairs
+    cols : ndarray of intp, (M, Kc), optional
+        Global parameter index of each column of ``a`` per measurement (-1: padding, its
+        partials zero): the columns a measurement touches (:func:`compress_columns`), so
+        that the work per measurement is ``Kc^2``, not ``Kmax^2``. Default
+        ``gidx[image_of]``.
     """
 
     n_params: int
@@ -138,12 +217,18 @@ class NormalSystem:
     n_xx_extra: np.ndarray
     b_x_extra: np.ndarray
     pairs: Pairs
+    cols: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         k = self.n_params
         j = self.n_xx_extra.shape[0]
         self._j = j
         self._numba = USE_NUMBA
+        cols = self.gidx[self.image_of] if self.cols is None else self.cols
+        self._cols = np.ascontiguousarray(cols, dtype=np.intp)
+        if self._cols.shape != (self.a.shape[0], self.a.shape[2]):
+            raise ValueError(f"NormalSystem: cols {self._cols.shape} do not match the partials "
+                             f"{self.a.shape}")
         if self._numba:
             self.a = np.ascontiguousarray(self.a, dtype=np.float64)
             self.b = np.ascontiguousarray(self.b, dtype=np.float64)
@@ -154,14 +239,14 @@ class NormalSystem:
             self.b_x = np.array(self.b_x_extra, dtype=np.float64)
             self.n_px = np.empty((self.a.shape[0], self.a.shape[2], 3))
             self._order, self._start = _by_point(self.point_of, j, self.pairs)
-            _nb_accumulate(self.a, self.b, self.v, self.gidx, self.image_of, self.point_of,
+            _nb_accumulate(self.a, self.b, self.v, self._cols, self.point_of,
                            self.n_pp, self.b_p, self.n_xx, self.b_x, self.n_px)
             return
         at = np.swapaxes(self.a, 1, 2)
-        self.n_px = at @ self.b  # (M, Kmax, 3)
-        n_pp_m = at @ self.a  # (M, Kmax, Kmax)
-        b_p_m = np.einsum("mki,mk->mi", self.a, self.v)  # (M, Kmax)
-        g = self.gidx[self.image_of]  # (M, Kmax)
+        self.n_px = at @ self.b  # (M, Kc, 3)
+        n_pp_m = at @ self.a  # (M, Kc, Kc)
+        b_p_m = np.einsum("mki,mk->mi", self.a, self.v)  # (M, Kc)
+        g = self._cols  # (M, Kc)
         ok = g >= 0
         # image blocks of N_pp and b_p
         self.n_pp = self.n_pp_prior.copy()
@@ -190,18 +275,21 @@ class NormalSystem:
         n_pp = self.n_pp
         if damping:
             n_xx = n_xx + damping * np.einsum("jii->ji", n_xx)[:, :, None] * np.eye(3)
-            n_pp = n_pp + damping * np.diag(np.diag(n_pp))
+            n_pp = n_pp.copy()
+            diag = np.arange(n_pp.shape[0])
+            n_pp[diag, diag] += damping * n_pp[diag, diag]
         self.c = _inv3(n_xx, numba=self._numba)  # (J, 3, 3)
         reduced, rhs = self._reduce(n_pp)
+        del n_pp
         self.reduced = reduced
         dp = self._solve_reduced(reduced, rhs)
         if self._numba:
             dx = np.empty((self._j, 3))
-            _nb_back_substitute(self.n_px, self.c, self.b_x, self.gidx, self.image_of,
-                                self.point_of, np.ascontiguousarray(dp, dtype=np.float64), dx)
+            _nb_back_substitute(self.n_px, self.c, self.b_x, self._cols, self.point_of,
+                                np.ascontiguousarray(dp, dtype=np.float64), dx)
             return dp, dx
-        g = self.gidx[self.image_of]
-        dp_m = np.where(g >= 0, dp[np.maximum(g, 0)], 0.0)  # (M, Kmax)
+        g = self._cols
+        dp_m = np.where(g >= 0, dp[np.maximum(g, 0)], 0.0)  # (M, Kc)
         t = self.b_x.copy()
         np.add.at(t, self.point_of, -np.einsum("mki,mk->mi", self.n_px, dp_m))
         dx = np.einsum("jik,jk->ji", self.c, t)
@@ -213,18 +301,18 @@ class NormalSystem:
         k = self.n_params
         p = self.pairs
         cb = self.c[self.point_of]  # (M, 3, 3)
-        left = self.n_px[p.a] @ cb[p.a]  # (P, Kmax, 3)
-        block = left @ np.swapaxes(self.n_px[p.b], 1, 2)  # (P, Kmax, Kmax)
-        ga = self.gidx[self.image_of[p.a]]
-        gb = self.gidx[self.image_of[p.b]]
+        left = self.n_px[p.a] @ cb[p.a]  # (P, Kc, 3)
+        block = left @ np.swapaxes(self.n_px[p.b], 1, 2)  # (P, Kc, Kc)
+        ga = self._cols[p.a]
+        gb = self._cols[p.b]
         mask = (ga >= 0)[:, :, None] & (gb >= 0)[:, None, :]
         rows = np.broadcast_to(ga[:, :, None], mask.shape)[mask]
         cols = np.broadcast_to(gb[:, None, :], mask.shape)[mask]
         vals = block[mask]
         # rhs: b_p - sum_m N_pm C_j b_j
         cbx = np.einsum("mik,mk->mi", cb, self.b_x[self.point_of])  # (M, 3)
-        t = np.einsum("mki,mi->mk", self.n_px, cbx)  # (M, Kmax)
-        g = self.gidx[self.image_of]
+        t = np.einsum("mki,mi->mk", self.n_px, cbx)  # (M, Kc)
+        g = self._cols
         rhs = self.b_p - np.bincount(g[g >= 0], t[g >= 0], minlength=k)
         if k <= DENSE_LIMIT:
             reduced = n_pp - np.bincount(rows * k + cols, vals, minlength=k * k).reshape(k, k)
@@ -235,26 +323,33 @@ class NormalSystem:
     def _reduce_numba(self, n_pp: F64) -> tuple[ReducedMatrix, F64]:
         k = self.n_params
         rhs = np.array(self.b_p, dtype=np.float64)
-        dense = k <= DENSE_LIMIT
-        if dense:
+        n_points = self._start.size - 1
+        if k <= DENSE_LIMIT:
             reduced = np.array(n_pp, dtype=np.float64)
-            rows = cols = np.empty(0, np.intp)
-            vals = np.empty(0)
-        else:
-            reduced = np.empty((0, 0))
-            kmax = self.gidx.shape[1]
-            n = np.diff(self._start)
-            size = int(np.sum(n * (n + 1) // 2)) * kmax * kmax * 2
-            rows = np.empty(size, np.intp)
-            cols = np.empty(size, np.intp)
-            vals = np.empty(size)
-        used = _nb_reduce(self.n_px, self.c, self.b_x, self.gidx, self.image_of,
-                          self._order, self._start, dense, reduced, rhs, rows, cols, vals)
-        if dense:
-            return 0.5 * (reduced + reduced.T), rhs
-        sub = scipy.sparse.coo_matrix((vals[:used], (rows[:used], cols[:used])),
-                                      shape=(k, k)).tocsc()
-        return scipy.sparse.csc_matrix(n_pp) + sub, rhs
+            none = np.empty(0, np.intp)
+            _nb_reduce(self.n_px, self.c, self.b_x, self._cols, self._order, self._start,
+                       0, n_points, True, reduced, rhs, none, none, np.empty(0))
+            reduced += reduced.T
+            reduced *= 0.5
+            return reduced, rhs
+        # sparse: the triplets of a run of points at a time (bounded memory), summed
+        kc = self._cols.shape[1]
+        n = np.diff(self._start)
+        per_point = n * (n + 1) * kc * kc  # two triplets per pair a < b, one for a == b
+        bounds = _chunks(per_point, SPARSE_CHUNK_TRIPLETS)
+        size = max((int(per_point[j0:j1].sum()) for j0, j1 in zip(bounds[:-1], bounds[1:],
+                                                                    strict=True)), default=0)
+        rows = np.empty(size, np.intp)
+        cols = np.empty(size, np.intp)
+        vals = np.empty(size)
+        reduced = scipy.sparse.csc_matrix(n_pp)
+        for j0, j1 in zip(bounds[:-1], bounds[1:], strict=True):  # runs of points, not points
+            used = _nb_reduce(self.n_px, self.c, self.b_x, self._cols, self._order,
+                              self._start, int(j0), int(j1), False, np.empty((0, 0)), rhs,
+                              rows, cols, vals)
+            reduced = reduced + scipy.sparse.coo_matrix(
+                (vals[:used], (rows[:used], cols[:used])), shape=(k, k)).tocsc()
+        return reduced, rhs
 
     @staticmethod
     def _solve_reduced(reduced: ReducedMatrix, rhs: F64) -> F64:
@@ -281,7 +376,8 @@ class NormalSystem:
             _nb_cho_solve(low, out)
             return out / scale
         try:
-            factor = scipy.linalg.cho_factor(scaled, lower=True, check_finite=False)
+            factor = scipy.linalg.cho_factor(scaled, lower=True, overwrite_a=True,
+                                             check_finite=False)
         except scipy.linalg.LinAlgError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         d = np.diag(factor[0])
@@ -291,45 +387,46 @@ class NormalSystem:
 
     # ------------------------------------------------------------------ covariance
     def parameter_cofactor(self) -> np.ndarray:
-        """(K, K) ``Q_pp``: the inverse of the reduced system (undamped)."""
+        """(K, K) ``Q_pp``: the inverse of the reduced system (undamped).
+
+        Dense whatever the reduced system's storage (the posterior covariance of every
+        parameter); with the kernels, a Cholesky inverse in place: four (K, K) arrays at the
+        peak, the reduced system's included."""
         reduced = self.reduced
         if scipy.sparse.issparse(reduced):
             reduced = reduced.toarray()
+            reduced += reduced.T  # the triplets' sums are symmetric to rounding only
+            reduced *= 0.5
         if reduced.shape[0] == 0:
             return np.zeros((0, 0))
         scale = np.sqrt(np.diag(reduced))
-        scaled = reduced / np.outer(scale, scale)
-        inv = None
+        outer = np.outer(scale, scale)
         if self._numba:  # Cholesky inverse (potrf + potri): a third of a general inverse
-            factor, info = scipy.linalg.lapack.dpotrf(scaled, lower=True, clean=True)
-            if info == 0:
-                low, info = scipy.linalg.lapack.dpotri(factor, lower=True)
-                if info == 0:
-                    inv = np.tril(low) + np.tril(low, -1).T
-        if inv is None:
-            inv = np.linalg.inv(scaled)
-        inv = inv / np.outer(scale, scale)
+            inv = _cholesky_inverse(reduced / outer)
+            if inv is not None:
+                inv /= outer
+                return inv  # exactly symmetric
+        inv = np.linalg.inv(reduced / outer) / outer
         return 0.5 * (inv + inv.T)
 
     def point_cofactors(self, q_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``Q_xx`` (J, 3, 3) of the points and ``Q_px`` (M, Kmax, 3), the cofactor between
-        each measurement's image parameters and its point."""
+        """``Q_xx`` (J, 3, 3) of the points and ``Q_px`` (M, Kc, 3), the cofactor between
+        the parameters of each measurement's columns and its point."""
         if self._numba:
             q_xx = np.empty((self._j, 3, 3))
             q_px = np.empty(self.n_px.shape)
             _nb_point_cofactors(np.ascontiguousarray(q_pp, dtype=np.float64), self.n_px,
-                                self.c, self.gidx, self.image_of, self._order, self._start,
-                                q_xx, q_px)
+                                self.c, self._cols, self._order, self._start, q_xx, q_px)
             return q_xx, q_px
         p = self.pairs
-        ga = self.gidx[self.image_of[p.a]]
-        gb = self.gidx[self.image_of[p.b]]
-        q_ab = _gather(q_pp, ga, gb)  # (P, Kmax, Kmax)
-        u = q_ab @ self.n_px[p.b]  # (P, Kmax, 3): Q[i_a, i_b] N_pb
+        ga = self._cols[p.a]
+        gb = self._cols[p.b]
+        q_ab = _gather(q_pp, ga, gb)  # (P, Kc, Kc)
+        u = q_ab @ self.n_px[p.b]  # (P, Kc, 3): Q[i_a, i_b] N_pb
         u_m = np.zeros(self.n_px.shape)
         np.add.at(u_m, p.a, u)
         cb = self.c[self.point_of]
-        q_px = -u_m @ cb  # (M, Kmax, 3)
+        q_px = -u_m @ cb  # (M, Kc, 3)
         inner = np.zeros((self._j, 3, 3))
         np.add.at(inner, p.point, np.swapaxes(self.n_px[p.a], 1, 2) @ u)
         q_xx = self.c + self.c @ inner @ self.c
@@ -339,8 +436,9 @@ class NormalSystem:
                    a: np.ndarray | None = None, b: np.ndarray | None = None) -> np.ndarray:
         """(M, 2, 2) ``W^(1/2) J Q J^T W^(1/2)`` of every measurement.
 
-        ``a`` (M, 2, Kmax) and ``b`` (M, 2, 3) replace the system's whitened partials (e.g.
-        partials whitened by the a-priori sigmas alone, without robust weights)."""
+        ``a`` (M, 2, Kc) in the system's columns and ``b`` (M, 2, 3) replace the system's
+        whitened partials (e.g. partials whitened by the a-priori sigmas alone, without
+        robust weights)."""
         a = self.a if a is None else np.ascontiguousarray(a, dtype=np.float64)
         b = self.b if b is None else np.ascontiguousarray(b, dtype=np.float64)
         if self._numba:
@@ -348,9 +446,9 @@ class NormalSystem:
             _nb_hat_blocks(np.ascontiguousarray(q_pp, dtype=np.float64),
                            np.ascontiguousarray(q_xx, dtype=np.float64),
                            np.ascontiguousarray(q_px, dtype=np.float64), a, b,
-                           self.gidx, self.image_of, self.point_of, out)
+                           self._cols, self.point_of, out)
             return out
-        g = self.gidx[self.image_of]
+        g = self._cols
         q_ii = _gather(q_pp, g, g)
         at = np.swapaxes(a, 1, 2)
         bt = np.swapaxes(b, 1, 2)
@@ -410,14 +508,14 @@ def _inv3(m: np.ndarray, numba: bool = False) -> np.ndarray:
 # ================================================================================ kernels
 @njit(cache=True)
 def _nb_accumulate(  # pragma: no cover - numba
-    a: F64, b: F64, v: F64, gidx: Idx, image_of: Idx, point_of: Idx, n_pp: F64, b_p: F64,
+    a: F64, b: F64, v: F64, cols: Idx, point_of: Idx, n_pp: F64, b_p: F64,
     n_xx: F64, b_x: F64, n_px: F64,
 ) -> None:
     """Per measurement: ``N_px = A^T B`` into ``n_px``; ``A^T A``, ``A^T v`` scattered into
     ``n_pp``, ``b_p``; ``B^T B``, ``B^T v`` into the point's ``n_xx``, ``b_x``."""
     kmax = a.shape[2]
     for m in range(a.shape[0]):
-        g = gidx[image_of[m]]
+        g = cols[m]
         j = point_of[m]
         for r in range(kmax):
             for c in range(3):
@@ -440,22 +538,21 @@ def _nb_accumulate(  # pragma: no cover - numba
 
 @njit(cache=True)
 def _nb_reduce(  # pragma: no cover - numba
-    n_px: F64, cinv: F64, b_x: F64, gidx: Idx, image_of: Idx, order: Idx, start: Idx,
-    dense: bool, reduced: F64, rhs: F64, rows: Idx, cols: Idx, vals: F64,
+    n_px: F64, cinv: F64, b_x: F64, cols: Idx, order: Idx, start: Idx, j0: int, j1: int,
+    dense: bool, reduced: F64, rhs: F64, t_rows: Idx, t_cols: Idx, vals: F64,
 ) -> int:
-    """Schur complement over the points, point by point: ``rhs -= N_pj C_j b_j`` and, for
-    each pair ``a <= b`` of the point's measurements, ``-N_pa C_j N_bp`` (and its transpose
-    for ``a < b``) subtracted from ``reduced`` (dense) or written as triplets (negated).
-    Returns the number of triplets written."""
+    """Schur complement over the points ``j0 <= j < j1``, point by point:
+    ``rhs -= N_pj C_j b_j`` and, for each pair ``a <= b`` of the point's measurements,
+    ``-N_pa C_j N_bp`` (and its transpose for ``a < b``) subtracted from ``reduced`` (dense)
+    or written as triplets (negated). Returns the number of triplets written."""
     kmax = n_px.shape[1]
-    n_points = start.size - 1
     most = 0
-    for j in range(n_points):
+    for j in range(j0, j1):
         most = max(most, start[j + 1] - start[j])
     left = np.empty((most, kmax, 3))
     cbx = np.empty(3)
     used = 0
-    for j in range(n_points):
+    for j in range(j0, j1):
         m0 = start[j]
         n = start[j + 1] - m0
         cj = cinv[j]
@@ -463,7 +560,7 @@ def _nb_reduce(  # pragma: no cover - numba
             cbx[i] = cj[i, 0] * b_x[j, 0] + cj[i, 1] * b_x[j, 1] + cj[i, 2] * b_x[j, 2]
         for q in range(n):
             m = order[m0 + q]
-            g = gidx[image_of[m]]
+            g = cols[m]
             for r in range(kmax):
                 for c in range(3):
                     left[q, r, c] = (n_px[m, r, 0] * cj[0, c] + n_px[m, r, 1] * cj[1, c]
@@ -472,10 +569,10 @@ def _nb_reduce(  # pragma: no cover - numba
                     rhs[g[r]] -= (n_px[m, r, 0] * cbx[0] + n_px[m, r, 1] * cbx[1]
                                   + n_px[m, r, 2] * cbx[2])
         for qa in range(n):
-            ga = gidx[image_of[order[m0 + qa]]]
+            ga = cols[order[m0 + qa]]
             for qb in range(qa, n):
                 mb = order[m0 + qb]
-                gb = gidx[image_of[mb]]
+                gb = cols[mb]
                 for r in range(kmax):
                     if ga[r] < 0:
                         continue
@@ -489,27 +586,45 @@ def _nb_reduce(  # pragma: no cover - numba
                             if qb != qa:
                                 reduced[gb[c], ga[r]] -= val
                         else:
-                            rows[used] = ga[r]
-                            cols[used] = gb[c]
+                            t_rows[used] = ga[r]
+                            t_cols[used] = gb[c]
                             vals[used] = -val
                             used += 1
                             if qb != qa:
-                                rows[used] = gb[c]
-                                cols[used] = ga[r]
+                                t_rows[used] = gb[c]
+                                t_cols[used] = ga[r]
                                 vals[used] = -val
                                 used += 1
     return used
 
 
 @njit(cache=True)
+def _nb_chunks(weights: Idx, budget: int, out: Idx) -> int:  # pragma: no cover - numba
+    """:func:`_chunks` into ``out``; returns the number of boundaries."""
+    out[0] = 0
+    used = 1
+    total = 0
+    for i in range(weights.size):
+        if total > 0 and total + weights[i] > budget:
+            out[used] = i
+            used += 1
+            total = 0
+        total += weights[i]
+    if weights.size > 0:
+        out[used] = weights.size
+        used += 1
+    return used
+
+
+@njit(cache=True)
 def _nb_back_substitute(  # pragma: no cover - numba
-    n_px: F64, cinv: F64, b_x: F64, gidx: Idx, image_of: Idx, point_of: Idx, dp: F64, dx: F64,
+    n_px: F64, cinv: F64, b_x: F64, cols: Idx, point_of: Idx, dp: F64, dx: F64,
 ) -> None:
     """``dx_j = C_j (b_j - sum_m N_jp dp)``."""
     kmax = n_px.shape[1]
     t = b_x.copy()
     for m in range(n_px.shape[0]):
-        g = gidx[image_of[m]]
+        g = cols[m]
         j = point_of[m]
         for r in range(kmax):
             if g[r] < 0:
@@ -524,7 +639,7 @@ def _nb_back_substitute(  # pragma: no cover - numba
 
 @njit(cache=True)
 def _nb_point_cofactors(  # pragma: no cover - numba
-    q_pp: F64, n_px: F64, cinv: F64, gidx: Idx, image_of: Idx, order: Idx, start: Idx,
+    q_pp: F64, n_px: F64, cinv: F64, cols: Idx, order: Idx, start: Idx,
     q_xx: F64, q_px: F64,
 ) -> None:
     """:meth:`NormalSystem.point_cofactors`, point by point: ``U_a = sum_b Q[i_a, i_b] N_pb``,
@@ -540,11 +655,11 @@ def _nb_point_cofactors(  # pragma: no cover - numba
         inner[:, :] = 0.0
         for qa in range(n):
             ma = order[m0 + qa]
-            ga = gidx[image_of[ma]]
+            ga = cols[ma]
             u[:, :] = 0.0
             for qb in range(n):
                 mb = order[m0 + qb]
-                gb = gidx[image_of[mb]]
+                gb = cols[mb]
                 for r in range(kmax):
                     if ga[r] < 0:
                         continue
@@ -576,14 +691,13 @@ def _nb_point_cofactors(  # pragma: no cover - numba
 
 @njit(cache=True)
 def _nb_hat_blocks(  # pragma: no cover - numba
-    q_pp: F64, q_xx: F64, q_px: F64, a: F64, b: F64, gidx: Idx, image_of: Idx, point_of: Idx,
-    out: F64,
+    q_pp: F64, q_xx: F64, q_px: F64, a: F64, b: F64, cols: Idx, point_of: Idx, out: F64,
 ) -> None:
     """:meth:`NormalSystem.hat_blocks` per measurement."""
     kmax = a.shape[2]
     aq = np.empty(kmax)
     for m in range(a.shape[0]):
-        g = gidx[image_of[m]]
+        g = cols[m]
         j = point_of[m]
         for s in range(2):
             for t in range(2):
