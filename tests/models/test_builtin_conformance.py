@@ -85,7 +85,7 @@ class TestBuiltinModels(SensorModelContract):
     """The contract over every registered model's examples."""
 
     parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
-                             "mba": {"accuracy_m": 50.0}}
+                             "mba": {"accuracy_m": 50.0}, "jitter": {"accuracy_m": 10.0}}
 
     @pytest.fixture(params=_cases())
     def model(self, request):

@@ -54,7 +54,8 @@ ALTITUDE = 700e3
 
 # ============================================================================ conformance
 class TestLinescanContract(SensorModelContract):
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
+                             "jitter": {"accuracy_m": 10.0}}
 
     @pytest.fixture(params=["orbital", "ecef", "corrected", "dg-subset", "reverse",
                             "reverse-corrected"])

@@ -26,7 +26,8 @@ GSD = 2.5
 
 
 class TestCorrectedLinescanContract(SensorModelContract):
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
+                             "jitter": {"accuracy_m": 10.0}}
 
     @pytest.fixture(params=["light", "focal"])
     def model(self, request):

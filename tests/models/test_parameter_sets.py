@@ -63,7 +63,7 @@ def test_protocol_lists_the_parameter_set_members():
 
 # ============================================================================ linescan
 def test_linescan_lists_its_sets():
-    assert LinescanModel.parameter_sets == ("default", "linescan", "dg", "physical")
+    assert LinescanModel.parameter_sets == ("default", "linescan", "dg", "physical", "jitter")
     assert ORBITAL.with_parameter_set("default") is ORBITAL
 
 
@@ -123,7 +123,7 @@ def test_unknown_set_or_option_is_refused_naming_what_is_known():
         ORBITAL.with_parameter_set("mba")
     text = str(info.value)
     assert "LinescanModel" in text and "'mba'" in text
-    assert "['default', 'linescan', 'dg', 'physical']" in text
+    assert "['default', 'linescan', 'dg', 'physical', 'jitter']" in text
     with pytest.raises(ParameterSetError, match=r"\['sigma'\].*\['accuracy_m'\]"):
         ORBITAL.with_parameter_set("dg", sigma=3.0)
     with pytest.raises(ParameterSetError, match="accuracy_m"):
@@ -168,10 +168,11 @@ def test_simulated_onboard_model_takes_dg_without_options():
 # ============================================================================ conformance kit
 @pytest.mark.parametrize("model", [ORBITAL, CORRECTED, SUBSET], ids=["zero", "corrected", "subset"])
 def test_kit_checks_every_linescan_set(model):
-    options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
+    options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
+               "jitter": {"accuracy_m": 10.0}}
     assert check_parameter_sets(model, parameter_set_options=options) == {}
     skipped = check_parameter_sets(model)
-    assert list(skipped) == ["dg", "physical"]
+    assert list(skipped) == ["dg", "physical", "jitter"]
     assert all("accuracy_m" in reason for reason in skipped.values())
 
 

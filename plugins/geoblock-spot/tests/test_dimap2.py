@@ -289,7 +289,8 @@ class TestDimap2Contract(SensorModelContract):
     ground -> image solver's 1e-9 px noise)."""
 
     check_options = {"n": 4}
-    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0}}
+    parameter_set_options = {"dg": {"accuracy_m": 10.0}, "physical": {"accuracy_m": 10.0},
+                             "jitter": {"accuracy_m": 10.0}}
 
     @pytest.fixture(params=["spot6", "phr-dg"])
     def model(self, request, data_dir):

@@ -12,6 +12,7 @@ from geoblock import coords
 from geoblock.typing import ArrayLike, BoolArray, Float64Array, StrArray
 
 if TYPE_CHECKING:
+    from geoblock.models.parameters import ParameterSet
     from geoblock.models.protocol import SensorModel
 
 __all__ = ["check_measured_geometry", "check_not_degenerate", "ground_covariance",
@@ -185,9 +186,22 @@ def check_not_degenerate(before: SensorModel, after: SensorModel, lon: ArrayLike
 def parameter_prior(model: SensorModel, overrides: Mapping[str, float]
                     ) -> tuple[BoolArray, Float64Array]:
     """Adjustable mask (P,) and a-priori covariance (P, P) of a model's parameters, with
-    sigma overrides by name (0: fixed; inf: free)."""
+    sigma overrides by name (0: fixed; inf: free).
+
+    An adjustment weights the adjustable parameters' pseudo-observations by
+    :func:`prior_weight` of the covariance's adjustable block. When the set carries an
+    a-priori ``information`` matrix (:class:`~geoblock.models.ParameterSet`: a smoothness
+    prior, the ``"jitter"`` set), that block is the inverse of the information's adjustable
+    block (the prior of the adjustable parameters given the fixed ones), so the weight is the
+    information itself; an override replaces the parameter's row and column of the
+    information by ``1 / sigma^2`` on the diagonal (0: free). Elsewhere the covariance is the
+    information's inverse (:attr:`~geoblock.models.ParameterSet.prior_covariance`).
+    """
     params = model.parameters
     mask = np.array(params.adjustable, dtype=bool)
+    information = getattr(params, "information", None)
+    if information is not None:
+        return _information_prior(params, information, mask, overrides)
     cov = np.array(params.prior_covariance, dtype=np.float64)
     for name, sigma in overrides.items():
         k = params.index(name)
@@ -198,4 +212,32 @@ def parameter_prior(model: SensorModel, overrides: Mapping[str, float]
         cov[:, k] = 0.0
         cov[k, k] = float(sigma) ** 2
         mask[k] = True
+    return mask, cov
+
+
+def _information_prior(params: ParameterSet, information: Float64Array, mask: BoolArray,
+                       overrides: Mapping[str, float]) -> tuple[BoolArray, Float64Array]:
+    """:func:`parameter_prior` of a set with an a-priori information matrix."""
+    from geoblock.models.parameters import covariance_from_information
+
+    info = np.array(information, dtype=np.float64)
+    changed = False
+    for name, sigma in overrides.items():
+        k = params.index(name)
+        if sigma == 0:
+            mask[k] = False
+            continue
+        info[k, :] = 0.0
+        info[:, k] = 0.0
+        info[k, k] = 0.0 if np.isinf(sigma) else 1.0 / float(sigma) ** 2
+        mask[k] = True
+        changed = True
+    cov = (covariance_from_information(info, params.names) if changed
+           else np.array(params.prior_covariance, dtype=np.float64))
+    adj = np.flatnonzero(mask)
+    if adj.size and not mask.all():
+        # the adjustable parameters' prior given the fixed ones: its weight is the
+        # information's adjustable block (a principal block: positive definite where the
+        # whole is)
+        cov[np.ix_(adj, adj)] = covariance_from_information(info[np.ix_(adj, adj)])
     return mask, cov

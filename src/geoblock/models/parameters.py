@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -12,7 +12,8 @@ from numpy.typing import DTypeLike, NDArray
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["ParameterSet", "accuracy_or_stored", "location_accuracy"]
+__all__ = ["ParameterSet", "accuracy_or_stored", "covariance_from_information",
+           "location_accuracy"]
 
 
 def _frozen(a: ArrayLike, dtype: DTypeLike = np.float64) -> NDArray[Any]:
@@ -42,6 +43,17 @@ class ParameterSet:
     covariance : array_like, (P, P), optional
         Full a-priori covariance; when given it supersedes ``sigmas`` (whose squares must be
         its diagonal).
+    information : array_like, (P, P), optional
+        A-priori information (weight) matrix, the inverse of a covariance, in the parameters'
+        units to the power -2: the form in which a smoothness prior (a second-difference
+        penalty ``D2^T D2 / s^2``, singular on its own) and an amplitude prior
+        (``diag(1 / sigma^2)``) add up. When given it supersedes ``sigmas`` and
+        ``covariance`` for an adjustment's pseudo-observations (their weight is exactly this
+        matrix, restricted to the adjustable parameters). A parameter whose row is zero has
+        no a-priori constraint (free, sigma ``inf``); on the others the matrix must be
+        symmetric and positive definite, so that :attr:`prior_covariance` (its inverse there)
+        exists. ``sigmas`` defaults to the square roots of that inverse's diagonal (the
+        marginal a-priori sigmas). Exclusive with ``covariance``.
 
     Notes
     -----
@@ -54,6 +66,8 @@ class ParameterSet:
     sigmas: Float64Array
     adjustable: NDArray[np.bool_]
     covariance: Float64Array | None
+    information: Float64Array | None
+    _information_covariance: Float64Array | None = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -63,6 +77,7 @@ class ParameterSet:
         sigmas: ArrayLike | None = None,
         adjustable: ArrayLike | None = None,
         covariance: ArrayLike | None = None,
+        information: ArrayLike | None = None,
     ) -> None:
         names = tuple(str(n) for n in names)
         p = len(names)
@@ -76,6 +91,18 @@ class ParameterSet:
         if len(units) != p:
             raise ValueError(f"ParameterSet: {p} names but {len(units)} units")
         cov: Float64Array | None
+        info: Float64Array | None = None
+        info_cov: Float64Array | None = None
+        if information is not None:
+            if covariance is not None:
+                raise ValueError("ParameterSet: give a covariance or an information matrix, "
+                                 "not both")
+            info = _frozen(information)
+            if info.shape != (p, p):
+                raise ValueError(
+                    f"ParameterSet: information must be ({p}, {p}), got {info.shape}")
+            info_cov = covariance_from_information(info, names)
+            info_cov.flags.writeable = False
         if covariance is not None:
             cov = _frozen(covariance)
             if cov.shape != (p, p):
@@ -85,7 +112,8 @@ class ParameterSet:
             sig_default = np.sqrt(np.diag(cov))
         else:
             cov = None
-            sig_default = np.full(p, np.inf)
+            sig_default = (np.full(p, np.inf) if info_cov is None
+                           else np.sqrt(np.diag(info_cov)))
         sigmas_ = _frozen(sig_default if sigmas is None else sigmas)
         if sigmas_.shape != (p,):
             raise ValueError(f"ParameterSet: {p} names but sigmas of shape {sigmas_.shape}")
@@ -103,6 +131,8 @@ class ParameterSet:
             ("sigmas", sigmas_),
             ("adjustable", adjustable_),
             ("covariance", cov),
+            ("information", info),
+            ("_information_covariance", info_cov),
         ):
             object.__setattr__(self, name, value)
 
@@ -126,9 +156,13 @@ class ParameterSet:
 
     @property
     def prior_covariance(self) -> Float64Array:
-        """(P, P) a-priori covariance: ``covariance`` if given, else ``diag(sigmas**2)``."""
+        """(P, P) a-priori covariance: ``covariance`` if given; with an ``information``
+        matrix, its inverse on the parameters it constrains (``inf`` on the diagonal, zeros
+        off it, for those whose information row is zero); else ``diag(sigmas**2)``."""
         if self.covariance is not None:
             return self.covariance
+        if self._information_covariance is not None:
+            return self._information_covariance
         return np.diag(self.sigmas**2)
 
     # -- updates ------------------------------------------------------------------------------
@@ -145,12 +179,11 @@ class ParameterSet:
                     f"with_values: expected {len(self)} values {list(self.names)}, "
                     f"got shape {new.shape}"
                 )
-        return ParameterSet(
-            self.names, new, self.units, self.sigmas, self.adjustable, self.covariance
-        )
+        return self._derived(values=new)
 
     def with_sigmas(self, sigmas: ArrayLike, covariance: ArrayLike | None = None) -> ParameterSet:
-        """A copy with new a-priori sigmas (and optionally a full covariance)."""
+        """A copy with new a-priori sigmas (and optionally a full covariance); an
+        ``information`` matrix is dropped."""
         return ParameterSet(
             self.names, self.values, self.units, sigmas, self.adjustable, covariance
         )
@@ -163,7 +196,21 @@ class ParameterSet:
             mask = np.zeros(len(self), bool)
             for n in names:
                 mask[self.index(n)] = True
-        return ParameterSet(self.names, self.values, self.units, self.sigmas, mask, self.covariance)
+        return self._derived(adjustable=mask)
+
+    def _derived(self, values: ArrayLike | None = None,
+                 adjustable: ArrayLike | None = None) -> ParameterSet:
+        """A copy with new values or adjustable mask, the a-priori part unchanged (an
+        information matrix's inverse is not computed again)."""
+        values_ = self.values if values is None else values
+        adjustable_ = self.adjustable if adjustable is None else adjustable
+        if self.information is None:
+            return ParameterSet(self.names, values_, self.units, self.sigmas, adjustable_,
+                                self.covariance)
+        out = ParameterSet(self.names, values_, self.units, self.sigmas, adjustable_)
+        object.__setattr__(out, "information", self.information)
+        object.__setattr__(out, "_information_covariance", self._information_covariance)
+        return out
 
     # -- serialisation ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -177,6 +224,10 @@ class ParameterSet:
         }
         if self.covariance is not None:
             out["covariance"] = [[float(v) for v in row] for row in self.covariance]
+        if self.information is not None:  # banded in practice: the upper triangle's nonzeros
+            i, j = np.nonzero(np.triu(self.information))
+            out["information"] = {"row": [int(v) for v in i], "col": [int(v) for v in j],
+                                  "value": [float(v) for v in self.information[i, j]]}
         return out
 
     @classmethod
@@ -184,6 +235,22 @@ class ParameterSet:
         """Inverse of :meth:`to_dict`."""
         try:
             sigmas = [np.inf if s is None else float(s) for s in data["sigmas"]]
+            information = None
+            if data.get("information") is not None:
+                packed = data["information"]
+                p = len(data["names"])
+                information = np.zeros((p, p))
+                i = np.asarray(packed["row"], dtype=np.intp)
+                j = np.asarray(packed["col"], dtype=np.intp)
+                value = np.asarray(packed["value"], dtype=np.float64)
+                if not (i.shape == j.shape == value.shape and i.ndim == 1):
+                    raise ValueError("information: row, col and value differ in length")
+                if i.size and (i.min() < 0 or j.min() < 0 or max(i.max(), j.max()) >= p
+                               or np.any(i > j)):
+                    raise ValueError(f"information: an index outside the upper triangle of "
+                                     f"a ({p}, {p}) matrix")
+                information[i, j] = value
+                information[j, i] = value
             return cls(
                 names=tuple(data["names"]),
                 values=np.asarray(data["values"], dtype=np.float64),
@@ -191,6 +258,7 @@ class ParameterSet:
                 sigmas=np.asarray(sigmas, dtype=np.float64),
                 adjustable=np.asarray(data.get("adjustable", [True] * len(data["names"])), bool),
                 covariance=data.get("covariance"),
+                information=information,
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise SerializationError(f"invalid parameter set {dict(data)!r}: {exc}") from exc
@@ -214,6 +282,63 @@ class ParameterSet:
             for n, v, u in zip(self.names, self.values, self.units, strict=True)
         )
         return f"ParameterSet({body})"
+
+
+def covariance_from_information(information: ArrayLike,
+                                names: Sequence[str] | None = None) -> Float64Array:
+    """The covariance an a-priori information matrix stands for.
+
+    Parameters
+    ----------
+    information : array_like, (P, P)
+        Symmetric, finite; positive definite on the parameters whose row is not zero.
+    names : sequence of str, (P,), optional
+        Parameter names, for the messages.
+
+    Returns
+    -------
+    ndarray, (P, P)
+        The inverse of ``information`` on the parameters whose row is not zero; ``inf`` on the
+        diagonal and 0 off it for the others (free: nothing constrains them).
+
+    Raises
+    ------
+    ValueError
+        Not symmetric or not finite, a negative diagonal, or singular on the constrained
+        parameters (a smoothness penalty alone leaves a spline's constant and linear part
+        undetermined: add an amplitude term ``diag(1 / sigma^2)``).
+    """
+    info = np.asarray(information, dtype=np.float64)
+    p = info.shape[0]
+    label = list(names) if names is not None else [str(k) for k in range(p)]
+    if info.ndim != 2 or info.shape != (p, p):
+        raise ValueError(f"ParameterSet: information must be square, got {info.shape}")
+    if not np.all(np.isfinite(info)):
+        raise ValueError("ParameterSet: information must be finite (0 rows for free "
+                         "parameters)")
+    if not np.allclose(info, info.T, rtol=1e-12, atol=0.0):
+        raise ValueError("ParameterSet: information is not symmetric")
+    diag = np.diag(info)
+    if np.any(diag < 0):
+        bad = [n for n, d in zip(label, diag, strict=True) if d < 0]
+        raise ValueError(f"ParameterSet: information has a negative diagonal at {bad}")
+    on = np.any(info != 0, axis=1)
+    cov = np.zeros((p, p))
+    free = np.flatnonzero(~on)
+    cov[free, free] = np.inf
+    if on.any():
+        sub = info[np.ix_(on, on)]
+        try:
+            chol = np.linalg.cholesky(sub)
+        except np.linalg.LinAlgError:
+            raise ValueError(
+                "ParameterSet: information is not positive definite on the parameters it "
+                "constrains (a smoothness prior alone leaves a constant or a trend free): add "
+                "an amplitude term diag(1/sigma^2), or zero the rows of free parameters"
+            ) from None
+        inv_l = np.linalg.inv(chol)
+        cov[np.ix_(on, on)] = inv_l.T @ inv_l
+    return cov
 
 
 # ------------------------------------------------------------------ location accuracy

@@ -17,9 +17,11 @@ direct georeferencing and of Chen & Lee's bundle adjustment.
 Parameter sets (:meth:`LinescanModel.with_parameter_set`): ``"default"`` (the parameters as
 they are), ``"linescan"`` (the twelve, free), ``"physical"`` (:func:`physical_parameters`:
 attitude biases and drifts, along/across-track position biases and the focal scale, in the
-spirit of Toutin's CCRS model) and ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
+spirit of Toutin's CCRS model), ``"dg"`` (:func:`dg_parameters`: Teo et al.'s
 direct-georeferencing correction, position biases and drifts and attitude biases with a-priori
-sigmas from the product's location accuracy, attitude rates fixed).
+sigmas from the product's location accuracy, attitude rates fixed) and ``"jitter"`` (one of
+these plus roll, pitch and yaw corrections as cubic B-splines in time, with amplitude and
+smoothness priors: :mod:`~geoblock.models.linescan.jitter`).
 
 Frames
 ------
@@ -46,8 +48,11 @@ from their metadata:
 * :mod:`~geoblock.models.linescan.line_times`: :class:`LineTimes`;
 * :mod:`~geoblock.models.linescan.light`: the light-path corrections (velocity aberration,
   light time, atmospheric refraction), :data:`CORRECTIONS`;
-* :mod:`~geoblock.models.linescan.model`: :class:`LinescanModel`, :data:`PARAMETER_NAMES`,
-  :func:`dg_parameters`, :func:`physical_parameters`.
+* :mod:`~geoblock.models.linescan.model`: :class:`LinescanModel`;
+* :mod:`~geoblock.models.linescan.presets`: :data:`PARAMETER_NAMES`, :func:`dg_parameters`,
+  :func:`physical_parameters`;
+* :mod:`~geoblock.models.linescan.jitter`: the ``"jitter"`` set's correction splines in time,
+  :class:`JitterSpline`, :func:`attitude_correction`.
 
 Every name is importable from ``geoblock.models.linescan`` itself.
 """
@@ -55,16 +60,17 @@ Every name is importable from ``geoblock.models.linescan`` itself.
 
 from geoblock.models.linescan.attitude import Attitude
 from geoblock.models.linescan.ephemeris import MAX_SPEED_M_S, ORBIT_RADIUS_M, Ephemeris
+from geoblock.models.linescan.jitter import JitterSpline, attitude_correction, position_correction
 from geoblock.models.linescan.light import CORRECTIONS
 from geoblock.models.linescan.line_times import LineTimes
 from geoblock.models.linescan.look import LookDirections
-from geoblock.models.linescan.model import (
+from geoblock.models.linescan.model import LinescanModel
+from geoblock.models.linescan.presets import (
     DG_ADJUSTABLE,
     OPTIONAL_PARAMETER_NAMES,
     PARAMETER_NAMES,
     PARAMETER_UNITS,
     PHYSICAL_ADJUSTABLE,
-    LinescanModel,
     dg_parameters,
     physical_parameters,
 )
@@ -86,12 +92,15 @@ __all__ = [
     "PHYSICAL_ADJUSTABLE",
     "Attitude",
     "Ephemeris",
+    "JitterSpline",
     "LineTimes",
     "LinescanModel",
     "LookDirections",
+    "attitude_correction",
     "dg_parameters",
     "matrix_to_quaternion",
     "physical_parameters",
+    "position_correction",
     "orbital_frame",
     "quaternion_to_matrix",
     "rotation_xyz",

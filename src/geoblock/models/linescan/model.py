@@ -13,6 +13,7 @@ import numpy as np
 from geoblock import coords
 from geoblock.errors import ModelFormatError, ParameterSetError, SerializationError
 from geoblock.models.base import SensorModelBase
+from geoblock.models.linescan import jitter as _jitter
 from geoblock.models.linescan._checks import fail
 from geoblock.models.linescan.attitude import Attitude
 from geoblock.models.linescan.ephemeris import Ephemeris
@@ -23,52 +24,21 @@ from geoblock.models.linescan.light import (
 )
 from geoblock.models.linescan.line_times import LineTimes
 from geoblock.models.linescan.look import LookDirections
+from geoblock.models.linescan.presets import (
+    ALL_NAMES as _ALL_NAMES,
+)
+from geoblock.models.linescan.presets import (
+    PARAMETER_NAMES,
+    PARAMETER_UNITS,
+    dg_parameters,
+    physical_parameters,
+)
 from geoblock.models.linescan.rotations import matrix_to_quaternion, orbital_frame, rotation_xyz
 from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
 from geoblock.pixels import image_domain
 from geoblock.typing import ArrayLike, Float64Array, Status, StatusArray
 
-__all__ = [
-    "DG_ADJUSTABLE",
-    "OPTIONAL_PARAMETER_NAMES",
-    "PARAMETER_NAMES",
-    "PARAMETER_UNITS",
-    "PHYSICAL_ADJUSTABLE",
-    "LinescanModel",
-    "dg_parameters",
-    "physical_parameters",
-]
-
-#: Names of the model's parameters, in order (see :class:`LinescanModel`).
-PARAMETER_NAMES: tuple[str, ...] = (
-    "dp_along", "dp_across", "dp_radial",
-    "dp_along_rate", "dp_across_rate", "dp_radial_rate",
-    "roll_bias", "pitch_bias", "yaw_bias",
-    "roll_rate", "pitch_rate", "yaw_rate",
-)
-#: Units of :data:`PARAMETER_NAMES`.
-PARAMETER_UNITS: tuple[str, ...] = ("m",) * 3 + ("m/s",) * 3 + ("rad",) * 3 + ("rad/s",) * 3
-#: Parameters a model holds only when its set names them: ``focal_scale``, the relative
-#: change of the principal distance (look tangents divided by ``1 + focal_scale``; unit 1).
-OPTIONAL_PARAMETER_NAMES: tuple[str, ...] = ("focal_scale",)
-_ALL_NAMES = PARAMETER_NAMES + OPTIONAL_PARAMETER_NAMES
-_ALL_UNITS = PARAMETER_UNITS + ("1",)
-#: The parameters the ``"dg"`` set lets an adjustment change (:func:`dg_parameters`): position
-#: biases and drifts, attitude biases; the attitude rates stay fixed.
-DG_ADJUSTABLE: tuple[str, ...] = (
-    "dp_along", "dp_across", "dp_radial",
-    "dp_along_rate", "dp_across_rate", "dp_radial_rate",
-    "roll_bias", "pitch_bias", "yaw_bias",
-)
-#: The parameters the ``"physical"`` set lets an adjustment change
-#: (:func:`physical_parameters`, in the spirit of Toutin's CCRS model): attitude biases and
-#: drifts, along- and across-track position biases and the focal scale.
-PHYSICAL_ADJUSTABLE: tuple[str, ...] = (
-    "dp_along", "dp_across",
-    "roll_bias", "pitch_bias", "yaw_bias",
-    "roll_rate", "pitch_rate", "yaw_rate",
-    "focal_scale",
-)
+__all__ = ["LinescanModel"]
 
 _CONVERGED = np.uint8(Status.CONVERGED)
 _OUT = np.uint8(Status.OUT_OF_DOMAIN)
@@ -103,6 +73,11 @@ class LinescanModel(SensorModelBase):
         ``"light-time"``, ``"refraction"`` (:mod:`geoblock.models.linescan.light`). Default
         none: the line of sight is the straight line to the ground, as for sensors whose
         calibrated look directions absorb these effects (SPOT DIMAP).
+    jitter : JitterSpline, optional
+        The knot grid of the attitude (and position) correction splines whose coefficients
+        ``parameters`` may name (``roll_spline_000`` ...,
+        :mod:`geoblock.models.linescan.jitter`); the ``"jitter"`` parameter set sets it.
+        Default none.
 
     Notes
     -----
@@ -111,7 +86,10 @@ class LinescanModel(SensorModelBase):
     * ``P'(t) = P(t) + M_orb(t) @ [a, c, -r]`` with ``a = dp_along + dp_along_rate dt``,
       ``c = dp_across + dp_across_rate dt``, ``r = dp_radial + dp_radial_rate dt``;
     * ``R'(t) = R(t) @ Rx(roll) @ Ry(pitch) @ Rz(yaw)``, each angle ``bias + rate * dt``,
-      ``R(t)`` sensor -> ECEF (``M_orb(t) @ R_att(t)`` for an orbital-frame attitude).
+      ``R(t)`` sensor -> ECEF (``M_orb(t) @ R_att(t)`` for an orbital-frame attitude);
+    * with a :attr:`jitter` grid, each angle (and with position splines each offset ``a, c,
+      r``) adds its cubic B-spline in time ``sum_k c_k B_k(t)``
+      (:mod:`geoblock.models.linescan.jitter`).
 
     * ``look'(col) = normalise(look_x, look_y, look_z (1 + focal_scale))``.
 
@@ -122,13 +100,15 @@ class LinescanModel(SensorModelBase):
     direction is in the detector plane.
 
     Parameter sets (:attr:`parameter_sets`, :meth:`with_parameter_set`): ``"default"``,
-    ``"linescan"`` (all twelve free), ``"dg"`` (:func:`dg_parameters`) and ``"physical"``
-    (:func:`physical_parameters`).
+    ``"linescan"`` (all twelve free), ``"dg"`` (:func:`dg_parameters`), ``"physical"``
+    (:func:`physical_parameters`) and ``"jitter"`` (one of these plus attitude splines in
+    time, :mod:`geoblock.models.linescan.jitter`).
     """
 
     name: ClassVar[str] = "linescan"
     schema_version: ClassVar[int] = 1
-    parameter_sets: ClassVar[tuple[str, ...]] = ("default", "linescan", "dg", "physical")
+    parameter_sets: ClassVar[tuple[str, ...]] = ("default", "linescan", "dg", "physical",
+                                                 "jitter")
 
     #: ray/height-surface intersection: tolerance (metres of height) and iteration cap
     intersection_tolerance_m: ClassVar[float] = 1e-7
@@ -160,6 +140,7 @@ class LinescanModel(SensorModelBase):
         parameters: ParameterSet | None = None,
         location_accuracy_m: float | None = None,
         corrections: tuple[str, ...] | list[str] | None = None,
+        jitter: _jitter.JitterSpline | None = None,
     ) -> None:
         try:
             rows, cols = (int(v) for v in shape)
@@ -192,10 +173,17 @@ class LinescanModel(SensorModelBase):
         if not isinstance(parameters, ParameterSet):
             raise fail("LinescanModel.parameters",
                         f"must be a ParameterSet, got {type(parameters).__name__}")
-        unknown = [n for n in parameters.names if n not in _ALL_NAMES]
+        if jitter is not None and not isinstance(jitter, _jitter.JitterSpline):
+            raise fail("LinescanModel.jitter",
+                       f"must be a JitterSpline or None, got {type(jitter).__name__}")
+        known = _jitter.known_names(jitter)
+        unknown = [n for n in parameters.names if n not in known]
         if unknown:
+            spline = ("" if jitter is not None else
+                      "; spline coefficients need a jitter grid (with_parameter_set('jitter'))")
             raise fail("LinescanModel.parameters",
-                        f"unknown parameter names {unknown}; known: {list(_ALL_NAMES)}")
+                        f"unknown parameter names {unknown[:8]}; known: {list(_ALL_NAMES)} "
+                        f"and the jitter grid's coefficients{spline}")
         if not np.all(np.isfinite(parameters.values)):
             raise fail("LinescanModel.parameters", "values must be finite")
         corrections = check_corrections(corrections, "LinescanModel.corrections")
@@ -212,10 +200,22 @@ class LinescanModel(SensorModelBase):
         self._parameters = parameters
         self._location_accuracy_m = location_accuracy_m
         self._corrections = corrections
-        full = np.zeros(len(_ALL_NAMES))
-        self._index = np.array([_ALL_NAMES.index(n) for n in parameters.names], dtype=np.intp)
+        self._jitter = jitter
+        where = {n: k for k, n in enumerate(known)}
+        self._index = np.array([where[n] for n in parameters.names], dtype=np.intp)
+        full = np.zeros(len(known))
         full[self._index] = parameters.values
         self._full = full[:12]  # the 12 values in PARAMETER_NAMES order
+        # spline coefficients (6, n): roll, pitch, yaw, along, across, radial (None: no grid)
+        self._coef: np.ndarray | None = None
+        self._spline_att = self._spline_pos = False
+        if jitter is not None:
+            coef = np.zeros((6, jitter.n_coefficients))
+            n_axes = len(jitter.axes)
+            coef[:n_axes] = full[len(_ALL_NAMES):].reshape(n_axes, -1)
+            self._coef = coef
+            self._spline_att = bool(np.any(coef[:3]))
+            self._spline_pos = bool(np.any(coef[3:]))
         self._focal = 1.0 + float(full[12])  # 1 + focal_scale
         if not self._focal > 0.1:
             raise fail("LinescanModel.parameters",
@@ -267,6 +267,12 @@ class LinescanModel(SensorModelBase):
         return self._location_accuracy_m
 
     @property
+    def jitter(self) -> _jitter.JitterSpline | None:
+        """The knot grid of the correction splines (:mod:`geoblock.models.linescan.jitter`),
+        or None."""
+        return self._jitter
+
+    @property
     def corrections(self) -> tuple[str, ...]:
         """The light-path corrections applied (:mod:`geoblock.models.linescan.light`)."""
         return self._corrections
@@ -276,13 +282,13 @@ class LinescanModel(SensorModelBase):
 
     def replace(self, **changes: Any) -> Self:
         """A copy with some constructor arguments replaced (``ephemeris=...``, ``shape=...``,
-        ``location_accuracy_m=...``, ``corrections=...``)."""
+        ``location_accuracy_m=...``, ``corrections=...``, ``jitter=...``)."""
         args: dict[str, Any] = {
             "shape": self._shape, "ephemeris": self._ephemeris, "attitude": self._attitude,
             "look": self._look, "line_times": self._line_times, "epoch": self._epoch,
             "height_range": self._height_range, "parameters": self._parameters,
             "location_accuracy_m": self._location_accuracy_m,
-            "corrections": self._corrections}
+            "corrections": self._corrections, "jitter": self._jitter}
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"replace: unknown fields {sorted(unknown)}")
@@ -291,7 +297,7 @@ class LinescanModel(SensorModelBase):
             args["shape"], args["ephemeris"], args["attitude"], args["look"], args["line_times"],
             epoch=args["epoch"], height_range=args["height_range"],
             parameters=args["parameters"], location_accuracy_m=args["location_accuracy_m"],
-            corrections=args["corrections"])
+            corrections=args["corrections"], jitter=args["jitter"])
 
     # ------------------------------------------------------------------ parameter sets
     def with_parameter_set(self, name: str, **options: Any) -> Self:
@@ -299,7 +305,7 @@ class LinescanModel(SensorModelBase):
 
         Parameters
         ----------
-        name : {"default", "linescan", "dg", "physical"}
+        name : {"default", "linescan", "dg", "physical", "jitter"}
             * ``"default"``: the parameters as they are (returns ``self``);
             * ``"linescan"``: all twelve :data:`PARAMETER_NAMES`, free (infinite sigmas),
               adjustable;
@@ -310,13 +316,30 @@ class LinescanModel(SensorModelBase):
             * ``"physical"``: a physical set in the spirit of Toutin's CCRS model,
               :func:`physical_parameters`: attitude biases and drifts, along- and
               across-track position biases and the focal scale (:data:`PHYSICAL_ADJUSTABLE`),
-              a-priori sigmas from the location accuracy.
+              a-priori sigmas from the location accuracy;
+            * ``"jitter"``: the set ``base`` plus roll, pitch and yaw corrections as cubic
+              B-splines in time (:mod:`geoblock.models.linescan.jitter`,
+              :func:`~geoblock.models.linescan.jitter.jitter_parameters`): coefficients
+              ``roll_spline_000`` ... (rad), adjustable, with an amplitude and a
+              second-difference smoothness prior carried as the set's ``information``.
 
-            A ``focal_scale`` other than 0 stays in every set (fixed where the set does not
-            adjust it).
+            A ``focal_scale`` other than 0, and spline coefficients other than 0, stay in every
+            set (fixed where the set does not adjust them).
         **options
-            ``accuracy_m`` (float, ``"dg"`` and ``"physical"``): the location accuracy
-            (1 sigma, metres) the sigmas derive from; default :attr:`location_accuracy_m`.
+            ``accuracy_m`` (float, ``"dg"``, ``"physical"`` and ``"jitter"`` on those bases):
+            the location accuracy (1 sigma, metres) the sigmas derive from; default
+            :attr:`location_accuracy_m`. ``"jitter"`` also takes ``base`` (``"dg"``
+            (default), ``"physical"`` or ``"linescan"``), ``knot_lines`` (knot spacing, lines,
+            >= 1; default the current grid's, else
+            :func:`~geoblock.models.linescan.jitter.default_knot_lines`, the attitude record's
+            sampling), ``sigma_rad`` (amplitude sigma, default
+            :data:`~geoblock.models.linescan.jitter.DEFAULT_JITTER_SIGMA_RAD`),
+            ``smoothness_rad`` (sigma of a second difference per knot interval; default
+            :func:`~geoblock.models.linescan.jitter.default_smoothness`), ``position``
+            (bool, default as the current grid, else False: also along/across/radial
+            position splines, coefficients
+            ``dp_along_spline_000`` ... in metres) with ``position_sigma_m`` and
+            ``position_smoothness_m`` (default the attitude sigmas times the slant range).
 
         Returns
         -------
@@ -332,8 +355,13 @@ class LinescanModel(SensorModelBase):
         ------
         ParameterSetError
             An unknown name or option, or ``"dg"`` with neither ``accuracy_m`` nor
-            :attr:`location_accuracy_m`.
+            :attr:`location_accuracy_m`, or a ``"jitter"`` grid other than the current one
+            while spline coefficients are not 0.
         """
+        if name == "jitter":
+            self._parameter_set_request(name, options, _jitter.JITTER_OPTIONS)
+            spline, params = _jitter.jitter_set(self, **options)
+            return self.replace(jitter=spline, parameters=self._keep_values(params, spline))
         if name == "linescan":
             self._parameter_set_request(name, options)
             params = ParameterSet(PARAMETER_NAMES, self._full, PARAMETER_UNITS)
@@ -347,15 +375,37 @@ class LinescanModel(SensorModelBase):
             return super().with_parameter_set(name, **options)
         return self.replace(parameters=self._keep_values(params))
 
-    def _keep_values(self, params: ParameterSet) -> ParameterSet:
-        """``params`` with the current values, and a non-zero focal scale kept (fixed)."""
-        if self._focal != 1.0 and "focal_scale" not in params.names:
+    def _keep_values(self, params: ParameterSet,
+                     spline: _jitter.JitterSpline | None = None) -> ParameterSet:
+        """``params`` with the current values; a non-zero focal scale and non-zero spline
+        coefficients that ``params`` leaves out kept (fixed). ``spline``: the new model's
+        grid (default the current one)."""
+        spline = self._jitter if spline is None else spline
+        now = dict(zip(_ALL_NAMES, np.append(self._full, self._focal - 1.0), strict=True))
+        units = dict(zip(_ALL_NAMES, PARAMETER_UNITS + ("1",), strict=True))
+        if self._jitter is not None and self._coef is not None:
+            n_axes = len(self._jitter.axes)
+            now.update(zip(self._jitter.names, self._coef[:n_axes].ravel(), strict=True))
+            units.update(zip(self._jitter.names, self._jitter.units, strict=True))
+        extra = [n for n, v in now.items() if v != 0 and n not in params.names]
+        if spline != self._jitter and self._coef is not None and np.any(self._coef):
+            raise ParameterSetError(
+                f"{type(self).__qualname__} {self.name!r}: the spline coefficients are not 0 "
+                f"on the current jitter grid ({self._jitter}); a new grid ({spline}) would "
+                "drop that correction: ask for the current grid's knot_lines")
+        if extra:
+            k = len(extra)
+            info = None
+            if params.information is not None:  # the kept ones free (zero rows) and fixed
+                info = np.zeros((len(params) + k, len(params) + k))
+                info[:len(params), :len(params)] = params.information
             params = ParameterSet(
-                params.names + ("focal_scale",), np.append(params.values, 0.0),
-                params.units + ("1",), np.append(params.sigmas, np.inf),
-                np.append(params.adjustable, False))
-        full = np.append(self._full, self._focal - 1.0)
-        return params.with_values(full[[_ALL_NAMES.index(n) for n in params.names]])
+                params.names + tuple(extra), np.append(params.values, np.zeros(k)),
+                params.units + tuple(units[n] for n in extra),
+                None if info is not None else np.append(params.sigmas, np.full(k, np.inf)),
+                np.append(params.adjustable, np.zeros(k, bool)), _pad_free(params.covariance, k),
+                information=info)
+        return params.with_values([float(now.get(n, 0.0)) for n in params.names])
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
@@ -375,6 +425,8 @@ class LinescanModel(SensorModelBase):
             out["location_accuracy_m"] = self._location_accuracy_m
         if self._corrections:  # likewise
             out["corrections"] = list(self._corrections)
+        if self._jitter is not None:  # likewise
+            out["jitter"] = self._jitter.to_dict()
         return out
 
     @classmethod
@@ -398,6 +450,8 @@ class LinescanModel(SensorModelBase):
                 if "parameters" in data else None,
                 location_accuracy_m=data.get("location_accuracy_m"),
                 corrections=data.get("corrections"),
+                jitter=_jitter.JitterSpline.from_dict(data["jitter"])
+                if data.get("jitter") is not None else None,
             )
         except KeyError as exc:
             raise SerializationError(f"{cls.name}: missing field {exc}") from exc
@@ -409,15 +463,26 @@ class LinescanModel(SensorModelBase):
             raise SerializationError(f"{cls.name}: invalid model dictionary: {exc}") from exc
 
     # ------------------------------------------------------------------ state
-    def _params_at(self, dt: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """(N, 3) position offsets [a, c, -r] in the orbital frame and (N, 3) angles, or None."""
+    def _params_at(self, t: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(N, 3) position offsets [a, c, -r] in the orbital frame and (N, 3) angles at flat
+        times t, or None where all zero (so that zero corrections cost nothing)."""
         p = self._full
+        dt = t - self._line_times.reference_time_s
         offsets = angles = None
         if np.any(p[0:6]):
             offsets = p[0:3] + dt[:, None] * p[3:6]
-            offsets[:, 2] *= -1.0
         if np.any(p[6:12]):
             angles = p[6:9] + dt[:, None] * p[9:12]
+        if self._jitter is not None and self._coef is not None and (
+                self._spline_att or self._spline_pos):
+            rows = slice(0, 6) if self._spline_pos else slice(0, 3)
+            spline = self._jitter.evaluate(self._coef[rows], t)
+            if self._spline_att:
+                angles = spline[:, :3] if angles is None else angles + spline[:, :3]
+            if self._spline_pos:
+                offsets = spline[:, 3:] if offsets is None else offsets + spline[:, 3:]
+        if offsets is not None:
+            offsets[:, 2] *= -1.0
         return offsets, angles
 
     def _state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -427,7 +492,7 @@ class LinescanModel(SensorModelBase):
         rot = self._attitude.matrix(t)
         if self._attitude.frame == "orbital":
             rot = m_orb @ rot
-        offsets, angles = self._params_at(t - self._line_times.reference_time_s)
+        offsets, angles = self._params_at(t)
         if offsets is not None:
             pos = pos + np.einsum("nij,nj->ni", m_orb, offsets)
         if angles is not None:
@@ -447,8 +512,8 @@ class LinescanModel(SensorModelBase):
         position_m : ndarray, (..., 3)
             Corrected ECEF position ``P'``, metres.
         velocity_m_s : ndarray, (..., 3)
-            ECEF velocity from the ephemeris plus the position drift rates rotated to ECEF,
-            metres per second.
+            ECEF velocity from the ephemeris plus the position drift rates (and the position
+            splines' time derivative) rotated to ECEF, metres per second.
         rotation : ndarray, (..., 3, 3)
             Corrected sensor -> ECEF rotation ``R'``.
         """
@@ -458,6 +523,10 @@ class LinescanModel(SensorModelBase):
         rates = self._full[3:6] * np.array([1.0, 1.0, -1.0])
         if np.any(rates):
             vel = vel + m_orb @ rates
+        if self._spline_pos and self._jitter is not None and self._coef is not None:
+            drift = self._jitter.evaluate(self._coef[3:], t, derivative=True)
+            drift[:, 2] *= -1.0
+            vel = vel + np.einsum("nij,nj->ni", m_orb, drift)
         return pos.reshape(r.shape + (3,)), vel.reshape(r.shape + (3,)), rot.reshape(
             r.shape + (3, 3))
 
@@ -701,7 +770,9 @@ class LinescanModel(SensorModelBase):
         """d(row, col)/d(parameter k), pixels per parameter unit, (*S, 2, P).
 
         Analytic in the parameters (``dd/dp`` of the sensor-frame vector) through the
-        implicit-function theorem, as :meth:`partials_ground`.
+        implicit-function theorem, as :meth:`partials_ground`. A spline coefficient's partial
+        is its basis function at the exposure time times its axis's bias partial: nonzero for
+        four coefficients per axis and point.
         """
         shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
         n = t.size
@@ -713,7 +784,9 @@ class LinescanModel(SensorModelBase):
         dd_dp[:, :, 0:3] = -rt_m
         dd_dp[:, :, 3:6] = -rt_m * dt[:, None, None]
         # attitude: dd/d(angle_k) = -a_k x d, a_roll = (Ry Rz)^T ex, a_pitch = Rz^T ey, a_yaw = ez
-        ang = self._full[6:9] + dt[:, None] * self._full[9:12]
+        ang = self._params_at(t)[1]
+        if ang is None:
+            ang = np.zeros((n, 3))
         cb, sb = np.cos(ang[:, 1]), np.sin(ang[:, 1])
         cc, sc = np.cos(ang[:, 2]), np.sin(ang[:, 2])
         axis_roll = np.stack([cb * cc, -cb * sc, sb], axis=-1)  # first row of Ry Rz
@@ -732,7 +805,20 @@ class LinescanModel(SensorModelBase):
             sol = -np.linalg.solve(_nan_safe(jac), de_dp)
         sol[~np.isfinite(t)] = np.nan
         sol[:, 0, :] /= self._line_times.line_period_s
-        return sol[:, :, self._index].reshape(shape + (2, len(self._index)))
+        n_base = len(_ALL_NAMES)
+        base = self._index < n_base
+        if base.all():
+            return sol[:, :, self._index].reshape(shape + (2, len(self._index)))
+        out = np.zeros((n, 2, len(self._index)))
+        out[:, :, base] = sol[:, :, self._index[base]]
+        assert self._jitter is not None
+        columns = _jitter.spline_columns(self._jitter, self._parameters.names)
+        # d/d(coefficient) = B_k(t) d/d(bias): roll/pitch/yaw biases, then dp_along/across/radial
+        axis_bias = sol[:, :, [6, 7, 8, 0, 1, 2]]
+        _jitter.scatter_partials(self._jitter, columns, np.where(np.isfinite(t), t, 0.0),
+                                 axis_bias, out)
+        out[~np.isfinite(t)] = np.nan
+        return out.reshape(shape + (2, len(self._index)))
 
     # ------------------------------------------------------------------ example
     @classmethod
@@ -778,110 +864,17 @@ class LinescanModel(SensorModelBase):
                    epoch="2003-06-21T02:30:00Z")
 
 
-# ================================================================================= parameter sets
-def dg_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
-    """Teo et al.'s DG parameter set for a linescan model, sigmas from a location accuracy.
-
-    The direct-georeferencing correction: a first-degree polynomial orbital correction
-    ``dP(t)`` (``dp_along/across/radial`` and their ``_rate``) plus the three attitude biases
-    (``roll/pitch/yaw_bias``); the attitude rates stay in the set, fixed at 0.
-    :meth:`LinescanModel.with_parameter_set` ``("dg")`` gives the model with this set (and its
-    current parameter values).
-
-    Parameters
-    ----------
-    model : LinescanModel
-        The model whose geometry scales the sigmas (its parameter values are not used).
-    accuracy_m : float
-        The product's location accuracy, metres (1 sigma), > 0.
-
-    Returns
-    -------
-    ParameterSet
-        The twelve linescan names, values 0; adjustable: :data:`DG_ADJUSTABLE` (the attitude
-        rates are fixed). Sigmas, with ``s = accuracy_m``: position ``s`` (m); position rates
-        ``s / (T/2)`` (m/s, ``T`` the image duration: a drift that moves the image ends by
-        ``s``); roll/pitch bias ``s / D`` (rad, ``D`` slant range at the image centre); yaw
-        bias ``s / L`` (rad, ``L`` the ground distance from the nadir point to the farther end
-        of the centre row: a yaw about the satellite's vertical moves ground points by their
-        distance from nadir times the angle, up to 400 km for SPOT's off-nadir views);
-        attitude rates ``(roll/pitch sigma) / (T/2)`` (informational, not adjustable).
-
-    Raises
-    ------
-    ParameterSetError
-        ``accuracy_m`` is not a number > 0 (a ``ValueError``).
-    """
-    sigma = location_accuracy(accuracy_m, "dg_parameters: accuracy_m", ParameterSetError)
-    half_t, slant, lever, _ = _geometry_scales(model)
-    angle = sigma / slant
-    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
-                      + [angle, angle, sigma / lever] + [angle / half_t] * 3)
-    adjustable = np.array([n in DG_ADJUSTABLE for n in PARAMETER_NAMES])
-    return ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS, sigmas, adjustable)
-
-
-def physical_parameters(model: LinescanModel, accuracy_m: float) -> ParameterSet:
-    """A physical parameter set in the spirit of Toutin's CCRS model, sigmas from a location
-    accuracy.
-
-    Attitude biases and drifts (roll, pitch, yaw), along- and across-track position biases
-    and the focal scale are adjustable (:data:`PHYSICAL_ADJUSTABLE`); the radial position bias
-    and the position drifts stay in the set, fixed at 0 (the attitude drifts absorb them over
-    a scene's few seconds). :meth:`LinescanModel.with_parameter_set` ``("physical")`` gives
-    the model with this set (and its current parameter values).
-
-    Parameters
-    ----------
-    model : LinescanModel
-        The model whose geometry scales the sigmas (its parameter values are not used).
-    accuracy_m : float
-        The product's location accuracy, metres (1 sigma), > 0.
-
-    Returns
-    -------
-    ParameterSet
-        The twelve linescan names and ``focal_scale``, values 0. Sigmas, with
-        ``s = accuracy_m``, as in :func:`dg_parameters` (position ``s``; roll/pitch bias
-        ``s / D``; yaw bias ``s / L``; rates ``(bias sigma) / (T/2)``), and focal scale
-        ``s / W`` (``W`` the ground distance from the centre of the centre row to its farther
-        end: a focal scale moves the swath edges by ``W`` times it).
-
-    Raises
-    ------
-    ParameterSetError
-        ``accuracy_m`` is not a number > 0 (a ``ValueError``).
-    """
-    sigma = location_accuracy(accuracy_m, "physical_parameters: accuracy_m", ParameterSetError)
-    half_t, slant, lever, half_swath = _geometry_scales(model)
-    angle = sigma / slant
-    sigmas = np.array([sigma] * 3 + [sigma / half_t] * 3
-                      + [angle, angle, sigma / lever]
-                      + [angle / half_t, angle / half_t, sigma / lever / half_t]
-                      + [sigma / half_swath])
-    adjustable = np.array([n in PHYSICAL_ADJUSTABLE for n in _ALL_NAMES])
-    return ParameterSet(_ALL_NAMES, np.zeros(13), _ALL_UNITS, sigmas, adjustable)
-
-
-def _geometry_scales(model: LinescanModel) -> tuple[float, float, float, float]:
-    """``(T/2, D, L, W)``: half the image duration (s), the slant range at the image centre,
-    the ground distance from the nadir point to the farther end of the centre row (yaw's
-    lever arm) and from the centre to the farther end of the centre row (metres)."""
-    rows, cols = model.shape
-    free = model.replace(parameters=ParameterSet(PARAMETER_NAMES, np.zeros(12), PARAMETER_UNITS))
-    half_t = 0.5 * rows * model.line_times.period_magnitude_s  # either scan direction
-    centre = (0.5 * (rows - 1), 0.5 * (cols - 1))
-    g = free.backproject_ecef([centre[0]] * 3, [centre[1], 0.0, cols - 1.0], 0.0)
-    ground = np.stack([np.asarray(c) for c in g], axis=-1)  # (3, 3)
-    sat, _, _ = free.sensor_state(centre[0])
-    slant = float(np.linalg.norm(ground[0] - sat))
-    nadir = np.stack(coords.geodetic_to_ecef(*coords.ecef_to_geodetic(*sat)[:2], 0.0), axis=-1)
-    lever = float(np.max(np.linalg.norm(ground[1:] - nadir, axis=-1)))
-    half_swath = float(np.max(np.linalg.norm(ground[1:] - ground[0], axis=-1)))
-    return half_t, slant, lever, half_swath
-
-
 # ==================================================================================== internals
+def _pad_free(cov: np.ndarray | None, k: int) -> np.ndarray | None:
+    """A covariance with ``k`` free parameters appended (``inf`` variance), or None."""
+    if cov is None:
+        return None
+    out = np.pad(np.asarray(cov, dtype=np.float64), (0, k))
+    idx = np.arange(cov.shape[0], cov.shape[0] + k)
+    out[idx, idx] = np.inf
+    return out
+
+
 def _nan_safe(jac: np.ndarray) -> np.ndarray:
     """Replace non-finite or singular 2x2 systems by the identity (their results are masked)."""
     bad = ~np.all(np.isfinite(jac), axis=(-2, -1))
