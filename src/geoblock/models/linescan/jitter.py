@@ -457,7 +457,7 @@ def scatter_partials(spline: JitterSpline, column: np.ndarray, t: Float64Array,
 
 # ================================================================================ curves
 def _correction(model: LinescanModel, time_s: ArrayLike, attitude: bool,
-                covariance: ArrayLike | None, names: Sequence[str] | None
+                covariance: ArrayLike | None, names: Sequence[str] | None, detrend: bool
                 ) -> tuple[Float64Array, Float64Array]:
     t = np.asarray(time_s, dtype=np.float64)
     shape = t.shape
@@ -491,6 +491,13 @@ def _correction(model: LinescanModel, time_s: ArrayLike, attitude: bool,
                 col = column[first + j]
                 keep = col >= 0
                 design[pts[keep], a, col[keep]] = w[keep, j]
+    if detrend:  # minus the least-squares line in time over the times given
+        x = np.stack([np.ones(t.size), t - t.mean()], axis=-1)
+        fit = np.linalg.lstsq(x, design.reshape(t.size, -1), rcond=None)[0]
+        trend = (x @ fit).reshape(design.shape)
+        # what is exactly linear in time (bias, rate) goes; rounding stays below this
+        tiny = 1e-9 * np.max(np.abs(design), axis=0, keepdims=True)
+        design = np.where(np.abs(design - trend) > tiny, design - trend, 0.0)
     values = design @ np.asarray(params.values)
     if covariance is None:
         cov = np.array(params.prior_covariance)
@@ -521,7 +528,7 @@ def _correction(model: LinescanModel, time_s: ArrayLike, attitude: bool,
 
 def attitude_correction(model: LinescanModel, time_s: ArrayLike,
                         covariance: ArrayLike | None = None,
-                        names: Sequence[str] | None = None,
+                        names: Sequence[str] | None = None, *, detrend: bool = False,
                         ) -> tuple[Float64Array, Float64Array]:
     """A linescan model's attitude correction curve and its standard deviation.
 
@@ -543,6 +550,13 @@ def attitude_correction(model: LinescanModel, time_s: ArrayLike,
         (:attr:`~geoblock.models.ParameterSet.prior_covariance`).
     names : sequence of str, (K,), optional
         The parameters of ``covariance``'s rows.
+    detrend : bool
+        Take the least-squares straight line in time over ``time_s`` out of the curve and of
+        its band: the wander. An adjustment determines the correction's constant and trend
+        only together with the position offsets (a pitch bias and an along-track offset move
+        the image alike), so the full curve's band is as wide as their a-priori trade-off
+        allows, while the wander is what the image measurements fix; compare it with a
+        truth detrended the same way.
 
     Returns
     -------
@@ -556,17 +570,17 @@ def attitude_correction(model: LinescanModel, time_s: ArrayLike,
     ValueError
         ``covariance`` and ``names`` do not match, or name unknown parameters.
     """
-    return _correction(model, time_s, True, covariance, names)
+    return _correction(model, time_s, True, covariance, names, detrend)
 
 
 def position_correction(model: LinescanModel, time_s: ArrayLike,
                         covariance: ArrayLike | None = None,
-                        names: Sequence[str] | None = None,
+                        names: Sequence[str] | None = None, *, detrend: bool = False,
                         ) -> tuple[Float64Array, Float64Array]:
     """A linescan model's position correction curve (along, across, radial up; metres, in the
     orbital frame) and its standard deviation: ``dp + dp_rate (t - t_ref) + spline(t)``;
     arguments as :func:`attitude_correction`."""
-    return _correction(model, time_s, False, covariance, names)
+    return _correction(model, time_s, False, covariance, names, detrend)
 
 
 def spline_columns(spline: JitterSpline, names: Sequence[str]) -> np.ndarray:
