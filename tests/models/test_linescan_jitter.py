@@ -337,3 +337,39 @@ def test_correction_curve_and_its_sigma():
                        jit.jitter.evaluate(
                            [[jit.parameters[f"dp_across_spline_{k:03d}"]
                              for k in range(jit.jitter.n_coefficients)]], t)[:, 0])
+
+
+# ----------------------------------------------------------------------------- real products
+#: product -> (plugin, default knot spacing in lines, coefficients per axis): the attitude
+#: records' sampling (SPOT-5 8 Hz, Pleiades 64 Hz, WorldView-1 50 Hz) over the line period
+REAL = {
+    "cosicorr3d/test_dataset/SPOT5.DIM": ("geoblock_spot", 166, 77),
+    "shareloc/rpc/PHRDIMAP_P1BP--2018122638935449CP.XML": ("geoblock_spot", 213, 184),
+    "rpcm/test_rpc_files/rpc_WV1.xml": ("geoblock_quickbird", 480, 60),
+    "cosicorr3d/test_dataset/WV1.XML": ("geoblock_quickbird", 480, 58),  # reverse scan
+}
+
+
+@pytest.mark.parametrize("rel", list(REAL))
+def test_real_products_take_the_jitter_set(data_dir, rel):
+    import geoblock
+
+    plugin, knot_lines, per_axis = REAL[rel]
+    pytest.importorskip(plugin)
+    model = geoblock.open_model(data_dir / rel)
+    assert isinstance(model, LinescanModel)
+    options = {} if model.location_accuracy_m is not None else {"accuracy_m": 10.0}
+    jit = model.with_parameter_set("jitter", **options)
+    assert jit.jitter.knot_lines(model.line_times) == pytest.approx(knot_lines)
+    assert jit.jitter.n_coefficients == per_axis
+    rows, cols = model.shape
+    r, c = np.meshgrid(np.linspace(0, rows - 1, 7), np.linspace(0, cols - 1, 5))
+    h = np.full(r.size, 100.0)
+    g = model.backproject(r.ravel(), c.ravel(), h)
+    a, b = model.project(g.lon, g.lat, h), jit.project(g.lon, g.lat, h)
+    assert np.array_equal(a.row, b.row) and np.array_equal(a.col, b.col)
+    # a wander moves the image where its knots are, and the partials follow it
+    wandering = with_wander(jit, rad=1e-6)
+    moved = wandering.project(g.lon, g.lat, h)
+    assert 0 < np.max(np.abs(moved.row - a.row)) < 20
+    assert type(wandering).from_dict(wandering.to_dict()) == wandering
