@@ -24,8 +24,8 @@ end values (the spline parameter is clamped), so the corrections stay continuous
 ground -> image search looks beyond the image. Each time has four nonzero basis functions:
 a measurement's partials touch four coefficients per axis.
 
-Parameters
-----------
+Coefficient names
+-----------------
 ``roll_spline_000``, ``roll_spline_001``, ... ``pitch_spline_...``, ``yaw_spline_...``
 (radians); with ``position=True`` also ``dp_along_spline_...``, ``dp_across_spline_...``,
 ``dp_radial_spline_...`` (metres; radial positive up, like ``dp_radial``). The index has at
