@@ -164,10 +164,20 @@ def test_quickbird_error_grows_along_track_from_the_centre():
 
 
 def test_zero_error_budget_gives_the_true_model_up_to_jitter():
-    spec = SMALL["spot1a-small"].replace(onboard_rmse_m=0.0)
+    spec = SMALL["spot1a-small"].replace(onboard_rmse_m=0.0, onboard_errors="bias-drift")
     sim = simulate_sensor(spec)
     assert sim.onboard_error().rmse < 1e-6  # no jitter in this spec
     assert np.all(sim.errors.position_bias_m == 0)
+
+
+def test_zero_error_budget_realistic_leaves_the_realistic_components():
+    # issue 27: with realistic errors a zero budget still leaves the wander, the look-angle
+    # and the orbital-period ephemeris errors (metres: SPOT-4 DIODE sizes on SPOT1A)
+    spec = SMALL["spot1a-small"].replace(onboard_rmse_m=0.0)
+    sim = simulate_sensor(spec)
+    assert spec.onboard_errors == "realistic" and sim.realistic is not None
+    assert np.all(sim.errors.position_bias_m == 0)
+    assert 0.5 < sim.onboard_error().rmse < 10.0
 
 
 def test_deterministic_for_a_seed():

@@ -96,6 +96,7 @@ OPTIONS: dict[str, str] = {
     # runs
     "--variant": "the size of a simulated run: small (seconds) or larger ones (full, tiny)",
     "--seed": "the seed of every random draw",
+    "--onboard-errors": "the simulated on-board error model: realistic or bias-drift",
     "--repeats": "repetitions over seeds",
     "--list": "list the choices and exit",
 }

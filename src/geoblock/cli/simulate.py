@@ -45,13 +45,18 @@ class _PresetsHelp(click.Command):
               "minutes). Default: small.")
 @click.option("--seed", type=click.IntRange(min=0), default=None, metavar="N",
               help="Seed of every random draw (default: the scenario's).")
+@click.option("--onboard-errors", type=click.Choice(["realistic", "bias-drift"]), default=None,
+              help="The on-board error model of every image: realistic (biases and drifts "
+              "plus the attitude wander, look-angle and orbital-period ephemeris errors "
+              "measured on real products) or bias-drift (biases and linear drifts only, "
+              "as before issue 27). Default: the scenario's (realistic).")
 @click.option("--no-images", is_flag=True, default=False,
               help="Do not render the raw images (models, DEMs and points only).")
 @overwrite_opt
 @click.option("--list", "list_presets", is_flag=True, is_eager=True, expose_value=False,
               callback=_list_presets, help="List the scenario presets and exit.")
-def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, no_images: bool,
-             overwrite: bool) -> None:
+def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None,
+             onboard_errors: str | None, no_images: bool, overwrite: bool) -> None:
     """Simulate the block SCENARIO into OUTDIR: a preset name or a scenario TOML file.
 
     Writes the true terrain and the measured DEM(s) (GeoTIFF), per image the true and the
@@ -71,13 +76,14 @@ def simulate(scenario: str, outdir: str, variant: str | None, seed: int | None, 
       geoblock simulate teo2010-spot5 teo
       geoblock simulate aguilar2007-quickbird qb --variant full --no-images
       geoblock simulate my-block.toml out --seed 7 --overwrite
+      geoblock simulate teo2010-spot5 teo-bd --onboard-errors bias-drift
     """
     from geoblock.simulate.scenario import load_scenario
     from geoblock.workflows.scenario import run_scenario
 
     check_outputs({"OUTDIR": outdir}, {"SCENARIO": scenario}, overwrite=overwrite,
                   directories=["OUTDIR"])
-    sc = load_scenario(scenario, variant=variant, seed=seed)
+    sc = load_scenario(scenario, variant=variant, seed=seed, onboard_errors=onboard_errors)
     path = Path(outdir)
     click.echo(f"{sc.name}: {sc.description}", err=True)
     result = run_scenario(sc, path, progress=lambda m: click.echo(m, err=True),

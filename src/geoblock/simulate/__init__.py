@@ -4,6 +4,8 @@ A library of building blocks for tests, benchmarks and the demo; nothing here is
 application. The modules:
 
 * :mod:`~geoblock.simulate.sensors`: orbits, true and on-board linescan models;
+* :mod:`~geoblock.simulate.onboard`: on-board errors as real satellites have them (attitude
+  wander, look-angle and orbital-period ephemeris errors), measured on real products;
 * :mod:`~geoblock.simulate.terrain`: true terrain (ridged, fractal) and measured DEMs;
 * :mod:`~geoblock.simulate.points`: GCPs, ICPs, TPs and ICTPs with their truth;
 * :mod:`~geoblock.simulate.render`: raw images rendered through a model;

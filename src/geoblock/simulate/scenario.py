@@ -35,6 +35,7 @@ from geoblock.simulate.presets import (
     demo_dict,
     preset_dict,
 )
+from geoblock.simulate.onboard import ONBOARD_ERRORS
 from geoblock.simulate.sensors import OrbitSensorSpec
 
 __all__ = [
@@ -237,6 +238,10 @@ class Scenario:
         see :mod:`geoblock.adjust.methods`).
     source : str
         Where the scenario came from (a file path or ``preset:NAME/VARIANT``).
+    onboard_errors : {"realistic", "bias-drift"} or None
+        The on-board error model of every image that does not set its own (``onboard_errors``
+        at the top of the file; None: each image's, ``"realistic"`` unless it says;
+        :data:`~geoblock.simulate.onboard.ONBOARD_ERRORS`).
     """
 
     name: str
@@ -250,6 +255,7 @@ class Scenario:
     report: ReportConfig = ReportConfig()
     method: str = "dg"
     source: str = ""
+    onboard_errors: str | None = None
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
@@ -274,7 +280,7 @@ class Scenario:
 
 # ================================================================================ parsing
 _TOP_KEYS = ("name", "description", "seed", "method", "preset", "variant", "images", "terrain",
-             "dems", "points", "render", "report")
+             "dems", "points", "render", "report", "onboard_errors")
 _IMAGE_KEYS = ("id", "preset", "scale")
 _SPEC_FIELDS = {f.name: f for f in dataclasses.fields(OrbitSensorSpec)}
 _UNSAFE = "/\\:*?\"<>| "  # characters refused in names that become file names
@@ -322,8 +328,10 @@ def derived_seed(seed: int, *salt: int) -> int:
     return int(np.random.SeedSequence([int(seed) & 0xFFFFFFFF, *salt]).generate_state(1)[0])
 
 
-def _parse_image(f: Fields, index: int, seed: int) -> ImageConfig:
-    """One ``[[images]]`` table (``f``, named ``images[index].``)."""
+def _parse_image(f: Fields, index: int, seed: int,
+                 onboard_errors: str | None = None) -> ImageConfig:
+    """One ``[[images]]`` table (``f``, named ``images[index].``); ``onboard_errors``: the
+    scenario's, for an image that does not set its own."""
     here = f.where.rstrip(".")
     f.known((*_IMAGE_KEYS, *_SPEC_FIELDS))
     image_id = f.string("id")
@@ -349,10 +357,19 @@ def _parse_image(f: Fields, index: int, seed: int) -> ImageConfig:
             values[key] = f.boolean(key)
         elif kind == "int":
             values[key] = f.number(key, integer=True)
+        elif kind.startswith("tuple[float"):
+            n = kind.count("float")
+            if not (isinstance(value, list) and len(value) == n
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                            for v in value)):
+                raise f.error(key, f"must be a list of {n} numbers, got {value!r}")
+            values[key] = tuple(float(v) for v in value)
         else:  # float or float | None
             values[key] = f.number(key)
     values.setdefault("name", image_id)
     values.setdefault("seed", derived_seed(seed, 1, index))
+    if onboard_errors is not None:
+        values.setdefault("onboard_errors", onboard_errors)
     try:
         if name:
             spec = SENSOR_PRESETS[name].replace(**values)
@@ -471,6 +488,8 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
     elif "variant" in top:
         raise top.error("variant", "only meaningful with preset = NAME")
     seed = top.number("seed", 0, integer=True, low=0)
+    onboard_errors = (top.string("onboard_errors", choices=ONBOARD_ERRORS)
+                      if "onboard_errors" in top else None)
     name = top.string("name", "scenario")
     description = top.string("description", "")
     method = top.string("method", "dg")
@@ -481,7 +500,7 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
                                   f"{', '.join(METHODS)} (the simulated on-board models are "
                                   "linescan models: dg, rpcv0, rpcv1 or default apply)")
 
-    images = tuple(_parse_image(im, i, seed) for i, im in enumerate(
+    images = tuple(_parse_image(im, i, seed, onboard_errors) for i, im in enumerate(
         _array_of_tables(top, "images", "at least one [[images]] table is required")))
     ids = [im.id for im in images]
     if len(set(ids)) != len(ids):
@@ -495,7 +514,7 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
     render = _parse_render(top.table("render"))
     report = _parse_report(top.table("report"))
     return Scenario(name, description, seed, images, terrain, dems, points, render, report,
-                    method, source)
+                    method, source, onboard_errors)
 
 
 def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
@@ -515,7 +534,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
                for k, v in dataclasses.asdict(scenario.terrain).items() if v is not None}
     points = {k: (list(v) if isinstance(v, tuple) else v)
               for k, v in dataclasses.asdict(scenario.points).items()}
-    return {
+    out: dict[str, Any] = {
         "name": scenario.name,
         "description": scenario.description,
         "seed": scenario.seed,
@@ -527,6 +546,9 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         "dems": [dataclasses.asdict(d) for d in scenario.dems],
         "images": images,
     }
+    if scenario.onboard_errors is not None:
+        out["onboard_errors"] = scenario.onboard_errors
+    return out
 
 
 # ================================================================================ presets
@@ -595,7 +617,7 @@ def read_scenario(path: str | os.PathLike[str]) -> Scenario:
 
 
 def load_scenario(name_or_path: str | os.PathLike[str], variant: str | None = None,
-                  seed: int | None = None) -> Scenario:
+                  seed: int | None = None, onboard_errors: str | None = None) -> Scenario:
     """A preset by name or a scenario file by path, optionally with another variant or seed.
 
     Parameters
@@ -606,6 +628,9 @@ def load_scenario(name_or_path: str | os.PathLike[str], variant: str | None = No
         For a preset (default ``small``), or a file that starts from a preset.
     seed : int, optional
         Replaces the scenario's seed.
+    onboard_errors : {"realistic", "bias-drift"}, optional
+        Replaces the scenario's on-board error model, for every image (the images' own
+        ``onboard_errors`` too).
 
     Raises
     ------
@@ -637,6 +662,15 @@ def load_scenario(name_or_path: str | os.PathLike[str], variant: str | None = No
         if seed < 0:
             raise ScenarioError(f"seed must be >= 0, got {seed}")
         data["seed"] = int(seed)
+    if onboard_errors is not None:
+        if onboard_errors not in ONBOARD_ERRORS:
+            raise ScenarioError(f"unknown on-board error model {onboard_errors!r}; known: "
+                                f"{', '.join(ONBOARD_ERRORS)}")
+        data["onboard_errors"] = onboard_errors
+        if isinstance(data.get("images"), list):
+            for image in data["images"]:
+                if isinstance(image, dict):
+                    image.pop("onboard_errors", None)
     return scenario_from_dict(data, source)
 
 

@@ -17,6 +17,14 @@ shape, line period, attitude jitter, on-board error budget, seed) into a
   SPOT-5), with a requested share of along-track drift growing with the distance from the
   image centre (Aguilar et al., QuickBird basic imagery).
 
+With ``onboard_errors="realistic"`` (the default) the two also differ as real on-board data
+do (:mod:`geoblock.simulate.onboard`, sizes measured on the real products in
+``../shared/data``): the true attitude has a band-limited wander the on-board attitude does
+not know, the true look directions a smooth interior-orientation error, and the on-board
+ephemeris an error at the orbital period; the biases and drifts are scaled so that the total
+on-board RMSE is still ``onboard_rmse_m``. ``onboard_errors="bias-drift"`` gives the
+simulator's earlier models, bit for bit.
+
 :func:`onboard_error` measures the on-board model's ground error against the true model.
 
 Presets (plain :class:`OrbitSensorSpec` instances): :data:`SPOT5_STRIPS` (Teo et al.'s three
@@ -47,6 +55,8 @@ from geoblock.models.linescan import (
     rotation_xyz,
 )
 from geoblock.pixels import image_domain
+from geoblock.simulate import onboard as _onboard
+from geoblock.simulate.onboard import ONBOARD_ERRORS, RealisticErrors, WanderSpectrum
 from geoblock.typing import Float64Array
 
 __all__ = [
@@ -64,6 +74,7 @@ __all__ = [
     "SimulatedSensor",
     "incidence_angle",
     "onboard_error",
+    "realistic_errors",
     "simulate_sensor",
 ]
 
@@ -132,6 +143,28 @@ class OrbitSensorSpec:
         ISO-8601 UTC time of the scene centre.
     seed : int
         Seed of the jitter phases and the on-board errors.
+    onboard_errors : {"realistic", "bias-drift"}
+        The on-board error model (:data:`~geoblock.simulate.onboard.ONBOARD_ERRORS`):
+        ``"realistic"`` adds the attitude wander, the look-angle error and the orbital-period
+        ephemeris error below to the biases and drifts; ``"bias-drift"`` is biases and
+        linear drifts only (the simulator before issue 27, bit for bit for a seed).
+    wander_rms_rad : (float, float, float)
+        Attitude wander of the true model: RMS of its departure from a cubic in time over
+        the image span, roll/pitch/yaw, radians (default: :data:`~geoblock.simulate.
+        onboard.WANDER_SPOT5`, measured on ``SPOT5.DIM``). Images spanning fewer than 5
+        attitude samples get none.
+    wander_slope : float
+        Its power-law spectral slope (PSD ~ f**-slope).
+    wander_band_hz : (float, float)
+        Its band, Hz.
+    look_error_rad : (float, float)
+        RMS of the true model's look-angle error over the swath, along and across track,
+        radians (Legendre degrees 4 and 5 across the swath; default the SPOT-5 look-angle
+        table's departure from a cubic, :data:`~geoblock.simulate.onboard.
+        LOOK_ERROR_SPOT5_PX` times the table's 6.011 urad detector pitch).
+    ephemeris_rms_m : (float, float, float)
+        RMS of the on-board ephemeris error at the orbital period, along, across, radial,
+        metres (default :data:`~geoblock.simulate.onboard.EPHEMERIS_SPOT5_DIODE`).
     """
 
     name: str
@@ -157,6 +190,14 @@ class OrbitSensorSpec:
     margin_s: float = 12.0
     epoch: str = "2003-06-21T02:30:00Z"
     seed: int = 0
+    onboard_errors: str = "realistic"
+    wander_rms_rad: tuple[float, float, float] = _onboard.WANDER_SPOT5.rms_rad
+    wander_slope: float = _onboard.WANDER_SPOT5.slope
+    wander_band_hz: tuple[float, float] = _onboard.WANDER_SPOT5.band_hz
+    look_error_rad: tuple[float, float] = (
+        _onboard.LOOK_ERROR_SPOT5_PX[0] * _onboard.SPOT5_HRG_IFOV_RAD,
+        _onboard.LOOK_ERROR_SPOT5_PX[1] * _onboard.SPOT5_HRG_IFOV_RAD)
+    ephemeris_rms_m: tuple[float, float, float] = _onboard.EPHEMERIS_SPOT5_DIODE
 
     def __post_init__(self) -> None:
         def need(ok: bool, field: str, message: str) -> None:
@@ -184,6 +225,23 @@ class OrbitSensorSpec:
         need(0 <= self.onboard_drift_share < 1, "onboard_drift_share", "must be in [0, 1)")
         need(self.ephemeris_step_s > 0 and self.attitude_rate_hz > 0 and self.margin_s > 0,
              "ephemeris_step_s", "sampling steps and margin must be > 0")
+        need(self.onboard_errors in ONBOARD_ERRORS, "onboard_errors",
+             f"must be one of {', '.join(ONBOARD_ERRORS)}")
+
+        def sizes(field: str, n: int) -> None:
+            value = getattr(self, field)
+            need(isinstance(value, tuple) and len(value) == n
+                 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                         and math.isfinite(v) and v >= 0 for v in value),
+                 field, f"must be {n} finite sizes >= 0")
+
+        sizes("wander_rms_rad", 3)
+        sizes("look_error_rad", 2)
+        sizes("ephemeris_rms_m", 3)
+        try:
+            self.wander
+        except GeoblockError as exc:
+            need(False, "wander_band_hz", str(exc))
 
     def replace(self, **changes: Any) -> OrbitSensorSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
@@ -198,6 +256,22 @@ class OrbitSensorSpec:
             shape=(max(2, round(rows / factor)), max(2, round(cols / factor))),
             line_period_s=None if self.line_period_s is None else self.line_period_s * factor,
         )
+
+    @property
+    def wander(self) -> WanderSpectrum:
+        """The attitude wander's :class:`~geoblock.simulate.onboard.WanderSpectrum`."""
+        return WanderSpectrum(self.wander_rms_rad, self.wander_slope, self.wander_band_hz)
+
+    def with_wander(self, spectrum: WanderSpectrum) -> OrbitSensorSpec:
+        """A copy with the wander of ``spectrum`` (e.g. :data:`~geoblock.simulate.onboard.
+        WANDER_DG`)."""
+        return self.replace(wander_rms_rad=spectrum.rms_rad, wander_slope=spectrum.slope,
+                            wander_band_hz=spectrum.band_hz)
+
+    @property
+    def orbital_period_s(self) -> float:
+        """Period of the circular orbit, seconds."""
+        return 2 * math.pi / self.mean_motion_rad_s
 
     @property
     def orbit_radius_m(self) -> float:
@@ -273,6 +347,9 @@ class SimulatedSensor:
     errors: OnboardErrors
     roll_rad: float
     """The roll used (giving the requested incidence at the centre)."""
+    realistic: RealisticErrors | None = None
+    """The wander, look-angle and orbital-period ephemeris errors drawn
+    (``onboard_errors="realistic"``; None for ``"bias-drift"``)."""
 
     def onboard_error(self, n: int = 9) -> GroundError:
         """:func:`onboard_error` of this scene at the scene centre's height."""
@@ -317,9 +394,22 @@ def _orbit_elements(spec: OrbitSensorSpec, lon: float, lat: float) -> tuple[floa
     return u0, raan
 
 
+def _sample_times(spec: OrbitSensorSpec) -> tuple[Float64Array, Float64Array]:
+    """The ephemeris and attitude sampling times of a spec's models (as :func:`_build`)."""
+    half = 0.5 * spec.shape[0] * abs(spec.line_period) + spec.margin_s
+    n_eph = math.ceil(half / spec.ephemeris_step_s)
+    step_att = 1.0 / spec.attitude_rate_hz
+    n_att = math.ceil(half / step_att)
+    return (spec.ephemeris_step_s * np.arange(-n_eph, n_eph + 1, dtype=np.float64),
+            step_att * np.arange(-n_att, n_att + 1, dtype=np.float64))
+
+
 def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: float,
-           phases: np.ndarray, errors: OnboardErrors | None) -> LinescanModel:
-    """The model of the spec with the nadir at t = 0 over (nadir_lon, nadir_lat)."""
+           phases: np.ndarray, errors: OnboardErrors | None,
+           extra: RealisticErrors | None = None) -> LinescanModel:
+    """The model of the spec with the nadir at t = 0 over (nadir_lon, nadir_lat): the true
+    model when ``errors`` is None (with the wander and look error of ``extra``), else the
+    on-board model (with the orbital-period ephemeris error of ``extra``)."""
     rows, cols = spec.shape
     period = spec.line_period  # negative for a reverse scan
     half = 0.5 * rows * abs(period) + spec.margin_s
@@ -335,6 +425,8 @@ def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: floa
         w = 2 * math.pi * spec.jitter_frequency_hz
         jit = spec.jitter_amplitude_rad * np.sin(w * t_att[:, None] + phases[None, :])
         angles = np.array([roll, pitch, 0.0]) + jit
+        if extra is not None:
+            angles = angles + extra.wander_rad
         r_att = rotation_xyz(angles[:, 0], angles[:, 1], angles[:, 2])
     else:
         err_pos = errors.position_bias_m + t_eph[:, None] * errors.position_drift_m_s
@@ -342,11 +434,20 @@ def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: floa
         err_pos = err_pos * np.array([1.0, 1.0, -1.0])  # radial up = -z_o
         pos = pos + np.einsum("nij,nj->ni", m_orb, err_pos)
         vel = vel + np.einsum("nij,j->ni", m_orb, errors.position_drift_m_s * [1.0, 1.0, -1.0])
+        if extra is not None:
+            up = np.array([1.0, 1.0, -1.0])
+            pos = pos + np.einsum("nij,nj->ni", m_orb, extra.ephemeris_error_m * up)
+            vel = vel + np.einsum("nij,nj->ni", m_orb, extra.ephemeris_rate_m_s * up)
         err_att = errors.attitude_bias_rad + t_att[:, None] * errors.attitude_drift_rad_s
         r_att = rotation_xyz(roll, pitch, 0.0) @ rotation_xyz(
             err_att[:, 0], err_att[:, 1], err_att[:, 2])
     c = np.arange(cols) - (cols - 1) / 2.0
-    look = LookDirections.from_tan_angles(np.zeros(cols), c * spec.gsd_m / spec.altitude_m)
+    if extra is not None and errors is None:
+        look = LookDirections.from_tan_angles(
+            extra.look_error_tan[:, 0], c * spec.gsd_m / spec.altitude_m
+            + extra.look_error_tan[:, 1])
+    else:
+        look = LookDirections.from_tan_angles(np.zeros(cols), c * spec.gsd_m / spec.altitude_m)
     return LinescanModel(
         (rows, cols), Ephemeris(t_eph, pos, vel),
         Attitude(t_att, matrix_to_quaternion(r_att), frame="orbital"), look,
@@ -371,7 +472,7 @@ def incidence_angle(model: LinescanModel, row: float, col: float, h: float = 0.0
 
 
 # ================================================================================ simulation
-def _centred(spec: OrbitSensorSpec, phases: np.ndarray
+def _centred(spec: OrbitSensorSpec, phases: np.ndarray, extra: RealisticErrors | None = None
              ) -> tuple[LinescanModel, float, tuple[float, float]]:
     """The true model with the image centre on the scene centre and the requested incidence."""
     rows, cols = spec.shape
@@ -381,7 +482,7 @@ def _centred(spec: OrbitSensorSpec, phases: np.ndarray
     nadir = (spec.centre_lon, spec.centre_lat)
     model = None
     for _ in range(6):
-        model = _build(spec, nadir[0], nadir[1], roll, phases, None)
+        model = _build(spec, nadir[0], nadir[1], roll, phases, None, extra)
         g = model.backproject(rc, cc, spec.centre_h)
         e, n, _ = frame.from_geodetic(g.lon, g.lat, g.h)
         # move the nadir by the miss (the mapping is nearly a translation)
@@ -393,13 +494,37 @@ def _centred(spec: OrbitSensorSpec, phases: np.ndarray
             roll *= math.sin(math.radians(spec.incidence_deg)) / math.sin(math.radians(got))
         if math.hypot(float(e), float(n)) < 1e-3 * spec.gsd_m:
             break
-    model = _build(spec, nadir[0], nadir[1], roll, phases, None)
+    model = _build(spec, nadir[0], nadir[1], roll, phases, None, extra)
     return model, roll, nadir
 
 
 def _with_errors(spec: OrbitSensorSpec, nadir: tuple[float, float], roll: float,
-                 phases: np.ndarray, errors: OnboardErrors) -> LinescanModel:
-    return _build(spec, nadir[0], nadir[1], roll, phases, errors)
+                 phases: np.ndarray, errors: OnboardErrors,
+                 extra: RealisticErrors | None = None) -> LinescanModel:
+    return _build(spec, nadir[0], nadir[1], roll, phases, errors, extra)
+
+
+def realistic_errors(spec: OrbitSensorSpec) -> RealisticErrors:
+    """The wander, look-angle and orbital-period ephemeris errors of a ``"realistic"`` spec.
+
+    Drawn from their own stream (``numpy.random.SeedSequence([seed, 27])``), so that the
+    biases, drifts and jitter phases are those of ``"bias-drift"`` for the same seed.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([int(spec.seed) % 2**63, 27]))
+    t_eph, t_att = _sample_times(spec)
+    rows, cols = spec.shape
+    half_img = 0.5 * (rows - 1) * abs(spec.line_period)
+    inside = int(np.count_nonzero(np.abs(t_att) <= half_img))
+    if inside >= 5 and any(v > 0 for v in spec.wander_rms_rad):
+        wander = _onboard.attitude_wander(t_att, (-half_img, half_img), spec.wander, rng)
+    else:  # a cubic through fewer than 5 samples misses nothing
+        wander = np.zeros((t_att.size, 3))
+    look = (_onboard.look_error(cols, spec.look_error_rad, rng) if cols >= 6
+            else np.zeros((cols, 2)))
+    phases = rng.uniform(0.0, 2 * math.pi, 3)
+    err, rate = _onboard.ephemeris_periodic(t_eph, spec.ephemeris_rms_m, spec.orbital_period_s,
+                                            phases)
+    return RealisticErrors(t_att, wander, look, t_eph, err, rate)
 
 
 def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
@@ -419,7 +544,8 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
     """
     rng = np.random.default_rng(spec.seed)
     phases = rng.uniform(0.0, 2 * math.pi, 3)
-    true_model, roll, nadir = _centred(spec, phases)
+    extra = realistic_errors(spec) if spec.onboard_errors == "realistic" else None
+    true_model, roll, nadir = _centred(spec, phases, extra)
     zero = np.zeros(3)
     # error shapes: biases of comparable ground effect, random directions; drift along track
     alt = spec.altitude_m
@@ -435,11 +561,12 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
     # the ground error is linear in the error sizes: e = e0 + k_b e_b + k_d e_d, with e0 the
     # error of error-free on-board data (the unobserved jitter)
     zero_errors = OnboardErrors(zero, zero, zero, zero)
-    e_0 = _errors_of(spec, true_model, _with_errors(spec, nadir, roll, phases, zero_errors))
+    e_0 = _errors_of(spec, true_model,
+                     _with_errors(spec, nadir, roll, phases, zero_errors, extra))
     e_b = _errors_of(spec, true_model,
-                     _with_errors(spec, nadir, roll, phases, shape_bias)) - e_0
+                     _with_errors(spec, nadir, roll, phases, shape_bias, extra)) - e_0
     e_d = _errors_of(spec, true_model,
-                     _with_errors(spec, nadir, roll, phases, shape_drift)) - e_0
+                     _with_errors(spec, nadir, roll, phases, shape_drift, extra)) - e_0
 
     def dot(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.mean(np.sum(a * b, axis=-1)))
@@ -458,10 +585,10 @@ def simulate_sensor(spec: OrbitSensorSpec) -> SimulatedSensor:
         scale_b * shape_bias.position_bias_m, scale_d * shape_drift.position_drift_m_s,
         scale_b * shape_bias.attitude_bias_rad, scale_d * shape_drift.attitude_drift_rad_s,
     )
-    onboard = _with_errors(spec, nadir, roll, phases, errors)
+    onboard = _with_errors(spec, nadir, roll, phases, errors, extra)
     if spec.onboard_rmse_m > 0:  # the on-board data's stated accuracy: the "dg" set's sigmas
         onboard = onboard.replace(location_accuracy_m=spec.onboard_rmse_m)
-    return SimulatedSensor(spec, true_model, onboard, errors, roll)
+    return SimulatedSensor(spec, true_model, onboard, errors, roll, extra)
 
 
 def _errors_of(spec: OrbitSensorSpec, true: LinescanModel, onboard: LinescanModel) -> np.ndarray:
@@ -505,6 +632,10 @@ def onboard_error(true: LinescanModel, onboard: LinescanModel, n: int = 9,
 #: Teo et al.'s three SPOT-5 supermode strips over Taiwan (Table I: 2.52/2.52/2.67 m GSD,
 #: incidence 5.21, 5.65, -14.76 deg, 24000 x 24000 px, 10-15 % overlap; Table II case I on-board
 #: RMSE 2-D 33.6, 12.0 and 42.3 m). Orbit 832 km, 98.7 deg, descending (10:30 local time).
+#: Realistic on-board errors (the default): the wander measured on ``SPOT5.DIM``
+#: (:data:`~geoblock.simulate.onboard.WANDER_SPOT5`), its look-angle table's departure from a
+#: cubic (as an angle: the supermode's 2.5 m pixels come from the 5 m detectors), DIODE's
+#: ephemeris accuracy (:data:`~geoblock.simulate.onboard.EPHEMERIS_SPOT5_DIODE`).
 SPOT5_STRIPS: tuple[OrbitSensorSpec, ...] = tuple(
     OrbitSensorSpec(
         name=f"spot5-strip{k + 1}", altitude_m=832e3, inclination_deg=98.7, ascending=False,
@@ -520,24 +651,38 @@ SPOT5_STRIPS: tuple[OrbitSensorSpec, ...] = tuple(
 )
 #: QuickBird basic imagery like Aguilar et al.'s (0.62 m GSD, 450 km, 97.2 deg, 8 deg
 #: off-nadir, ~17 x 17 km) over Almeria, Spain; on-board 2-D RMSE 15 m with a 40 % share of
-#: along-track drift growing with the distance from the image centre.
+#: along-track drift growing with the distance from the image centre. Realistic on-board errors:
+#: the wander of the DigitalGlobe ATT records (:data:`~geoblock.simulate.onboard.WANDER_DG`),
+#: SPOT-5's look-angle departure in pixels at QuickBird's detector pitch, the DG ISDs' stated
+#: ephemeris accuracy (:data:`~geoblock.simulate.onboard.EPHEMERIS_DG`).
 QUICKBIRD = OrbitSensorSpec(
     name="quickbird", altitude_m=450e3, inclination_deg=97.2, ascending=False,
     centre_lon=-2.45, centre_lat=36.83, gsd_m=0.62, shape=(27552, 27424), roll_deg=8.0,
     jitter_amplitude_rad=2e-7, jitter_frequency_hz=2.0, onboard_rmse_m=15.0,
     onboard_drift_share=0.4, ephemeris_step_s=2.0, attitude_rate_hz=16.0,
     epoch="2004-08-06T11:05:00Z", seed=11,
-)
+    look_error_rad=(_onboard.LOOK_ERROR_SPOT5_PX[0] * 0.62 / 450e3,
+                    _onboard.LOOK_ERROR_SPOT5_PX[1] * 0.62 / 450e3),
+    ephemeris_rms_m=_onboard.EPHEMERIS_DG,
+).with_wander(_onboard.WANDER_DG)
 #: SPOT-1A-like (Chen & Lee): 10 m GSD, 6000 x 6000 px, 1.5 ms line period, 832 km,
-#: 98.7 deg; on-board 2-D RMSE 30 m.
+#: 98.7 deg; on-board 2-D RMSE 30 m. Realistic on-board errors: the wander of the SPOT 1-4
+#: records (:data:`~geoblock.simulate.onboard.WANDER_SPOT1_4`), SPOT-5's look-angle departure in
+#: pixels at the 10 m detector pitch, SPOT-4 DIODE's ephemeris accuracy (SPOT 1 had no on-board
+#: navigator: :data:`~geoblock.simulate.onboard.EPHEMERIS_SPOT4_DIODE` is a lower bound).
 SPOT1A = OrbitSensorSpec(
     name="spot1a", altitude_m=832e3, inclination_deg=98.7, ascending=False,
     centre_lon=120.95, centre_lat=24.1, gsd_m=10.0, shape=(6000, 6000), line_period_s=1.5e-3,
     incidence_deg=10.0, onboard_rmse_m=30.0, onboard_drift_share=0.1,
     epoch="1988-03-15T02:40:00Z", seed=21,
-)
+    look_error_rad=(_onboard.LOOK_ERROR_SPOT5_PX[0] * 10.0 / 832e3,
+                    _onboard.LOOK_ERROR_SPOT5_PX[1] * 10.0 / 832e3),
+    ephemeris_rms_m=_onboard.EPHEMERIS_SPOT4_DIODE,
+).with_wander(_onboard.WANDER_SPOT1_4)
 #: Small variants: 40x (SPOT-5: 600 x 600 px at 100 m), 40x (QuickBird: ~690 x 686 px at
-#: 24.8 m) and 10x (SPOT-1A: 600 x 600 px at 100 m) fewer rows and columns, same footprints.
+#: 24.8 m) and 10x (SPOT-1A: 600 x 600 px at 100 m) fewer rows and columns, same footprints,
+#: same on-board errors in time and angle (the same wander over the same seconds, so a smaller
+#: fraction of a pixel).
 SPOT5_STRIPS_SMALL: tuple[OrbitSensorSpec, ...] = tuple(s.scaled(40) for s in SPOT5_STRIPS)
 QUICKBIRD_SMALL = QUICKBIRD.scaled(40)
 SPOT1A_SMALL = SPOT1A.scaled(10)
