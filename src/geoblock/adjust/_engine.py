@@ -426,8 +426,12 @@ class _Engine:
             j = s.point_of[mine]
             lon, lat, h = ev.lon[j], ev.lat[j], ev.h[j]
             if s.adj[i].size:
-                partials = model.partials_parameters(lon, lat, h)[..., s.adj[i]]
-                partials[~ev.ok[mine]] = 0.0  # as the whitening below makes them
+                partials = model.partials_parameters(lon, lat, h)
+                if s.adj[i].size < partials.shape[-1]:  # (all adjusted: no copy)
+                    partials = partials[..., s.adj[i]]
+                failed = ~ev.ok[mine]
+                if failed.any():  # zero, as the whitening below makes them
+                    partials = np.where(failed[:, None, None], 0.0, partials)
                 parts.append((mine, *compress_columns(partials, s.gidx[i, : s.adj[i].size])))
             b[mine] = model.partials_ground(lon, lat, h) @ rot_t
         kc = max((c.shape[1] for _, _, c in parts), default=0)

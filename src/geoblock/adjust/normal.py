@@ -136,10 +136,13 @@ def compress_columns(partials: np.ndarray, columns: np.ndarray
     p = np.asarray(partials, dtype=np.float64)
     n, _, k = p.shape
     cols_in = np.broadcast_to(np.asarray(columns, dtype=np.intp), (n, k))
-    nz = np.any((p != 0.0) & ~np.isnan(p), axis=1) & (cols_in >= 0)  # (N, K)
-    kc = int(nz.sum(axis=1).max(initial=0))
-    rows, src = np.nonzero(nz)
-    pos = (np.cumsum(nz, axis=1) - 1)[rows, src]
+    nz = np.abs(p[:, 0]) > 0.0  # (N, K); NaN is not > 0
+    nz |= np.abs(p[:, 1]) > 0.0
+    nz &= cols_in >= 0
+    count = nz.sum(axis=1)
+    kc = int(count.max(initial=0))
+    rows, src = np.nonzero(nz)  # row-major: each row's columns in order
+    pos = np.arange(rows.size) - np.repeat(np.cumsum(count) - count, count)
     a = np.zeros((n, 2, kc))
     cols = np.full((n, kc), -1, np.intp)
     a[rows, :, pos] = p[rows, :, src]
