@@ -258,3 +258,25 @@ def test_scenario_onboard_errors_top_level_and_per_image(tmp_path):
         scenario_from_dict({**scenario_to_dict(default), "onboard_errors": "perfect"})
     with pytest.raises(ScenarioError, match="bias-drift"):
         load_scenario("chen1993-spot1a", onboard_errors="perfect")
+
+
+def test_cli_onboard_errors_reaches_every_image(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    import geoblock.workflows.scenario as wf
+    from geoblock.cli.simulate import simulate
+
+    seen = {}
+
+    def fake_run(sc, path, **kwargs):
+        seen["scenario"] = sc
+        raise SystemExit(0)
+
+    monkeypatch.setattr(wf, "run_scenario", fake_run)
+    result = CliRunner().invoke(simulate, ["teo2010-spot5", str(tmp_path / "out"),
+                                           "--onboard-errors", "bias-drift"])
+    assert result.exit_code == 0, result.output
+    assert [im.spec.onboard_errors for im in seen["scenario"].images] == ["bias-drift"] * 3
+    bad = CliRunner().invoke(simulate, ["teo2010-spot5", str(tmp_path / "o2"),
+                                        "--onboard-errors", "perfect"])
+    assert bad.exit_code == 2 and "realistic" in bad.output

@@ -28,6 +28,7 @@ import numpy as np
 from geoblock.errors import GeoblockError, GeoblockIOError, MetadataFieldError, ScenarioError
 from geoblock.io.files import read_toml, write_text
 from geoblock.io.metadata import Fields
+from geoblock.simulate.onboard import ONBOARD_ERRORS
 from geoblock.simulate.presets import (
     PRESETS,
     SENSOR_PRESETS,
@@ -35,7 +36,6 @@ from geoblock.simulate.presets import (
     demo_dict,
     preset_dict,
 )
-from geoblock.simulate.onboard import ONBOARD_ERRORS
 from geoblock.simulate.sensors import OrbitSensorSpec
 
 __all__ = [

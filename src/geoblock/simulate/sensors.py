@@ -239,7 +239,7 @@ class OrbitSensorSpec:
         sizes("look_error_rad", 2)
         sizes("ephemeris_rms_m", 3)
         try:
-            self.wander
+            WanderSpectrum(self.wander_rms_rad, self.wander_slope, self.wander_band_hz)
         except GeoblockError as exc:
             need(False, "wander_band_hz", str(exc))
 
