@@ -17,6 +17,11 @@ variant)``); :func:`geoblock.simulate.scenario.preset` parses it into a
     Chen & Lee (1993): one SPOT 1A scene (10 m, 6000 x 6000 px) over 950 m of relief, 21 GCPs
     and check points, a 40 m DTM.
 
+The images' on-board errors are ``realistic`` (biases and drifts plus the attitude wander,
+look-angle and orbital-period ephemeris errors measured on real products: the sensor presets'
+mix, :mod:`geoblock.simulate.onboard`) unless the scenario says ``onboard_errors =
+"bias-drift"``.
+
 Each comes in a ``small`` variant (images 10-40 times smaller with the same footprint, a
 coarser true terrain: seconds) and a ``full`` variant (the papers' image sizes).
 :func:`demo_dict` is the scenario of ``geoblock demo`` (the small Teo et al. block, or a
