@@ -27,7 +27,7 @@ model, like :class:`~geoblock.models.ImageCorrection` does with polynomials.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Self
 
@@ -36,6 +36,7 @@ import numpy as np
 from geoblock._array import broadcast_float64
 from geoblock.errors import ObservationError, SerializationError, TooFewPointsError
 from geoblock.models.corrections import ImageSpaceCorrection
+from geoblock.models.curves import CorrectionCurve
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, BoolArray, Float64Array
@@ -496,6 +497,22 @@ class CollocationCorrection(ImageSpaceCorrection):
     def collocation(self) -> Collocation:
         """The collocation applied to the wrapped model's image coordinates."""
         return self._collocation
+
+    def correction_curves(self, covariance: ArrayLike | None = None,
+                          names: Sequence[str] | None = None, *,
+                          rows: tuple[float, float] | None = None, samples: int = 200,
+                          detrend: bool = True) -> tuple[CorrectionCurve, ...]:
+        """The wrapped model's time-dependent corrections
+        (:class:`~geoblock.models.curves.HasCorrectionCurves`; ``covariance`` and ``names``
+        are of the wrapped model's parameters, as in a block adjustment's result), ``()``
+        when it has none. The collocation itself is a function of the image position, not of
+        time, and is not part of them."""
+        curves = getattr(self._model, "correction_curves", None)
+        if not callable(curves):
+            return ()
+        found: tuple[CorrectionCurve, ...] = curves(covariance, names, rows=rows,
+                                                    samples=samples, detrend=detrend)
+        return found
 
     def with_parameters(self, values: ArrayLike) -> Self:
         """A copy; ``values`` must be empty (the model has no parameters)."""

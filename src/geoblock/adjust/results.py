@@ -165,6 +165,38 @@ class BlockResult:
     robust: str = "none"
     notes: list[str] = field(default_factory=list)
 
+    def parameter_covariance(self, image: str) -> tuple[tuple[str, ...], Float64Array]:
+        """The posterior covariance of one image's adjusted parameters.
+
+        Parameters
+        ----------
+        image : str
+            An image of :attr:`models`.
+
+        Returns
+        -------
+        names : tuple of str, (K,)
+            The image's adjusted parameters (rows of :attr:`parameter_index` for ``image``;
+            empty when it was held fixed).
+        covariance : ndarray, (K, K)
+            :attr:`covariance` restricted to them, in their units squared: what
+            ``model.correction_curves(covariance, names)`` and
+            :func:`~geoblock.models.linescan.attitude_correction` take.
+
+        Raises
+        ------
+        KeyError
+            ``image`` is not in the block.
+        """
+        if image not in self.models:
+            raise KeyError(f"BlockResult.parameter_covariance: no image {image!r} in the "
+                           f"block (images: {list(self.models)})")
+        idx = np.array([k for k, (i, _) in enumerate(self.parameter_index) if i == image],
+                       dtype=np.intp)
+        names = tuple(self.parameter_index[k][1] for k in idx)
+        cov = np.asarray(self.covariance, dtype=np.float64)
+        return names, cov[np.ix_(idx, idx)] if idx.size else np.zeros((0, 0))
+
     # ---- statistics
     def stats(self, kind: str, image: str | None = None) -> AccuracyStats:
         """Ground accuracy (metres) at ``gcp`` or ``icp`` measurements, of one image or all."""

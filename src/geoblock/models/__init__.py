@@ -5,13 +5,16 @@ from geoblock._array import broadcast_float64, warn_status
 from geoblock.models.base import KernelResult, SensorModelBase, image_shape
 from geoblock.models.corrections import ImageCorrection
 from geoblock.models.crop import CroppedModel, model_for_image
+from geoblock.models.curves import CorrectionCurve, HasCorrectionCurves
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.models.registry import ModelRegistry
 from geoblock.plugins import from_dict, get_registry
 
 __all__ = [
+    "CorrectionCurve",
     "CroppedModel",
+    "HasCorrectionCurves",
     "ImageCorrection",
     "KernelResult",
     "ModelRegistry",

@@ -24,12 +24,14 @@ extent the vendor fitted the model over, not the image's) takes an image within
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Self
 
 from geoblock.errors import CropError, ModelFormatError, ModelImageMismatchError
 from geoblock.models.base import KernelResult, SensorModelBase, image_shape
+from geoblock.models.curves import CorrectionCurve
 from geoblock.models.parameters import ParameterSet
 from geoblock.models.protocol import SensorModel
 from geoblock.typing import ArrayLike, Float64Array
@@ -166,6 +168,22 @@ class CroppedModel(SensorModelBase):
 
     def with_parameters(self, values: ArrayLike) -> Self:
         return type(self)(self._model.with_parameters(values), self._offset, self._shape)
+
+    def correction_curves(self, covariance: ArrayLike | None = None,
+                          names: Sequence[str] | None = None, *,
+                          rows: tuple[float, float] | None = None, samples: int = 200,
+                          detrend: bool = True) -> tuple[CorrectionCurve, ...]:
+        """The wrapped model's time-dependent corrections over the crop's rows (``rows`` in
+        the crop's own rows; :class:`~geoblock.models.curves.HasCorrectionCurves`), ``()``
+        when the wrapped model has none. Each curve's ``rows`` are the crop's."""
+        curves = getattr(self._model, "correction_curves", None)
+        if not callable(curves):
+            return ()
+        first, last = (0.0, self._shape[0] - 1.0) if rows is None else rows
+        r0 = self._offset[0]
+        found = curves(covariance, names, rows=(float(first) + r0, float(last) + r0),
+                       samples=samples, detrend=detrend)
+        return tuple(dataclasses.replace(c, rows=c.rows - r0) for c in found)
 
     @property
     def parameter_sets(self) -> tuple[str, ...]:  # type: ignore[override]

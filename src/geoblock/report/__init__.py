@@ -8,7 +8,13 @@ arrays), never adjustment or simulator objects, so any workflow can report with 
 :class:`~geoblock.adjust.BlockResult`. Files are written through :mod:`geoblock.io.files`.
 """
 
-from geoblock.report.adjustment import report_markdown, result_dict, write_result
+from geoblock.report.adjustment import (
+    correction_curves,
+    correction_figure,
+    report_markdown,
+    result_dict,
+    write_result,
+)
 from geoblock.report.figures import (
     KIND_STYLES,
     correction_curve_plot,
@@ -34,6 +40,8 @@ __all__ = [
     "KIND_STYLES",
     "comparison_table",
     "correction_curve_plot",
+    "correction_curves",
+    "correction_figure",
     "error_vector_plot",
     "residual_vs_distance",
     "report_markdown",

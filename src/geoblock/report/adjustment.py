@@ -26,11 +26,16 @@ from geoblock.adjust.block import BlockResult
 from geoblock.adjust.statistics import AccuracyStats, ImageResidualStats
 from geoblock.io import files
 from geoblock.io.models import write_model
-from geoblock.report.figures import error_vector_plot, to_local_en
+from geoblock.models.curves import CorrectionCurve, HasCorrectionCurves
+from geoblock.report.figures import correction_curve_plot, error_vector_plot, to_local_en
 from geoblock.report.tables import stats_table
+from geoblock.typing import ArrayLike
 
-__all__ = ["check_output_directory", "image_residuals", "report_markdown", "result_dict",
-           "write_result"]
+__all__ = ["check_output_directory", "correction_curves", "correction_figure",
+           "image_residuals", "report_markdown", "result_dict", "write_result"]
+
+#: Plotting unit and factor of a correction curve's unit (others plot as they are).
+_DISPLAY_UNITS: dict[str, tuple[str, float]] = {"rad": ("µrad", 1e6), "m": ("m", 1.0)}
 
 
 def _f(x: Any) -> Any:
@@ -120,6 +125,101 @@ def image_residuals(result: BlockResult) -> dict[tuple[str, str], ImageResidualS
     return out
 
 
+def correction_curves(result: BlockResult, image: str, *, samples: int = 200,
+                      detrend: bool = True) -> tuple[CorrectionCurve, ...]:
+    """The time-dependent corrections an adjustment recovered for one image, with their
+    posterior bands.
+
+    Any adjusted model that implements
+    :class:`~geoblock.models.curves.HasCorrectionCurves` (a linescan model with the
+    ``"jitter"`` set, also inside a crop or a collocation correction) gives its curves,
+    computed with :meth:`BlockResult.parameter_covariance
+    <geoblock.adjust.BlockResult.parameter_covariance>`; other models give ``()``.
+
+    Parameters
+    ----------
+    result : BlockResult
+    image : str
+        An image of ``result.models``.
+    samples : int
+        Samples over the image's rows.
+    detrend : bool
+        Take the least-squares line in time out of each curve and its band (default): the
+        constant and the trend of an attitude correction trade with the position offsets, so
+        their band is as wide as the priors allow, while the rest (the wander) is what the
+        image measurements fix.
+
+    Returns
+    -------
+    tuple of CorrectionCurve
+
+    Raises
+    ------
+    KeyError
+        ``image`` is not in the block.
+    """
+    names, cov = result.parameter_covariance(image)
+    model = result.models[image]
+    if not isinstance(model, HasCorrectionCurves):
+        return ()
+    return tuple(model.correction_curves(cov, names, samples=samples, detrend=detrend))
+
+
+def correction_figure(curve: CorrectionCurve, truth: ArrayLike | None = None, *,
+                      title: str | None = None, band: float = 2.0,
+                      path: str | os.PathLike[str] | None = None) -> Any:
+    """:func:`~geoblock.report.figures.correction_curve_plot` of a :class:`CorrectionCurve`:
+    against the time from the image's centre row, radians shown as µrad, with its
+    ``+-band`` sigma band.
+
+    Parameters
+    ----------
+    curve : CorrectionCurve
+        E.g. from :func:`correction_curves`.
+    truth : array_like, (T, A), optional
+        The injected correction at ``curve.time_s`` in ``curve.unit`` (simulated data); it is
+        detrended like the curve (:meth:`CorrectionCurve.compare
+        <geoblock.models.curves.CorrectionCurve.compare>`).
+    title : str, optional
+    band : float
+        Half-width of the band, sigmas.
+    path : path-like, optional
+        Save the figure there.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    unit, scale = _DISPLAY_UNITS.get(curve.unit, (curve.unit, 1.0))
+    sigma = np.where(np.isfinite(curve.sigmas), curve.sigmas, np.nan)
+    return correction_curve_plot(
+        curve.time_s - curve.centre_s, curve.values, sigma,
+        None if truth is None else curve.compare(truth), axes_names=curve.axes, unit=unit,
+        scale=scale, band=band,
+        title=title or f"{curve.quantity} correction"
+        + (" (detrended)" if curve.detrended else ""), path=path)
+
+
+def _curve_table(result: BlockResult) -> list[str]:
+    rows = []
+    for image in result.models:
+        for c in correction_curves(result, image):
+            unit, scale = _DISPLAY_UNITS.get(c.unit, (c.unit, 1.0))
+            for k, axis in enumerate(c.axes):
+                v, s = c.values[:, k] * scale, c.sigmas[:, k] * scale
+                rows.append(f"| {image} | {c.quantity} | {axis} | {unit} | "
+                            f"{math.sqrt(float(np.mean(v**2))):.3g} | "
+                            f"{float(np.max(np.abs(v))):.3g} | {float(np.median(s)):.3g} |")
+    if not rows:
+        return []
+    return ["## Time-dependent corrections", "",
+            "The corrections that vary along the image in time (e.g. a linescan model's "
+            "\"jitter\" set), detrended: the least-squares line in time is taken out, since "
+            "their constant and trend trade with the position offsets. Figures below.", "",
+            "| image | correction | axis | unit | RMS | max abs | median sigma |",
+            "|---|---|---|---|---:|---:|---:|", *rows, ""]
+
+
 def _residual_table(result: BlockResult) -> list[str]:
     rows = image_residuals(result)
     if not rows:
@@ -192,6 +292,7 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
                              f"{s_pairs[key].rmse_2d:.2f} | {st.rmse_2d:.2f} |")
         lines.append("")
     lines += _residual_table(r)
+    lines += _curve_table(r)
     lines += ["## Parameters", ""]
     for image, e in r.parameters.items():
         if not e.names:
@@ -261,6 +362,12 @@ def _figures(result: BlockResult, folder: Path) -> dict[str, str]:
                           xlabel="col (px)", ylabel="row (px)", unit="px", y_down=True,
                           path=folder / name)
         out[f"image residuals, {image}"] = name
+    for image in result.models:
+        for curve in correction_curves(result, image):
+            name = f"corrections_{image}_{curve.quantity}.png"
+            correction_figure(curve, title=f"{image}: {curve.quantity} correction after "
+                              "adjustment (detrended), ±2 σ posterior", path=folder / name)
+            out[f"{curve.quantity} correction against time, {image}"] = name
     ictp = result.ictp
     if ictp is not None and len(ictp):
         e, n = to_local_en(ictp.lon_a, ictp.lat_a)

@@ -58,6 +58,7 @@ from geoblock.models.parameters import ParameterSet, accuracy_or_stored
 from geoblock.typing import ArrayLike, Float64Array, IndexArray
 
 if TYPE_CHECKING:
+    from geoblock.models.curves import CorrectionCurve
     from geoblock.models.linescan.model import LinescanModel
 
 __all__ = [
@@ -70,6 +71,7 @@ __all__ = [
     "WANDER_MAX_HZ",
     "JitterSpline",
     "attitude_correction",
+    "correction_curves",
     "default_knot_lines",
     "default_smoothness",
     "jitter_parameters",
@@ -581,6 +583,53 @@ def position_correction(model: LinescanModel, time_s: ArrayLike,
     orbital frame) and its standard deviation: ``dp + dp_rate (t - t_ref) + spline(t)``;
     arguments as :func:`attitude_correction`."""
     return _correction(model, time_s, False, covariance, names, detrend)
+
+
+def correction_curves(model: LinescanModel, covariance: ArrayLike | None = None,
+                      names: Sequence[str] | None = None, *,
+                      rows: tuple[float, float] | None = None, samples: int = 200,
+                      detrend: bool = True) -> tuple[CorrectionCurve, ...]:
+    """:meth:`LinescanModel.correction_curves <geoblock.models.linescan.LinescanModel.
+    correction_curves>`: the attitude curve (and the position curve with position splines)
+    of a model with a :attr:`~geoblock.models.linescan.LinescanModel.jitter` grid, sampled at
+    ``samples`` rows evenly over ``rows`` (default the whole image), in increasing time;
+    ``()`` without a grid (a bias and a rate only: nothing varies along the image but a
+    line). The curves are :func:`attitude_correction` and :func:`position_correction` with
+    ``covariance``, ``names`` and ``detrend``; see
+    :class:`~geoblock.models.curves.HasCorrectionCurves`.
+
+    Raises
+    ------
+    ValueError
+        ``samples < 2``, ``rows`` not two finite numbers, or ``covariance`` and ``names``
+        do not match.
+    """
+    from geoblock.models.curves import CorrectionCurve
+
+    spline = model.jitter
+    if spline is None:
+        return ()
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
+        raise ValueError(f"correction_curves: samples must be an integer >= 2, got {samples!r}")
+    first, last = (0.0, model.shape[0] - 1.0) if rows is None else (float(rows[0]),
+                                                                      float(rows[1]))
+    if not (np.isfinite(first) and np.isfinite(last)):
+        raise ValueError(f"correction_curves: rows must be finite, got {rows!r}")
+    r = np.linspace(first, last, int(samples))
+    t = model.line_times.time(r)
+    order = np.argsort(t, kind="stable")
+    r, t = r[order], t[order]
+    centre = float(model.line_times.time(0.5 * (first + last)))
+    out = []
+    for quantity, axes, unit, curve in (
+            ("attitude", ATTITUDE_SPLINE_AXES, "rad", attitude_correction),
+            ("position", POSITION_SPLINE_AXES, "m", position_correction)):
+        if axes[0] not in spline.axes:
+            continue
+        values, sigmas = curve(model, t, covariance, names, detrend=detrend)
+        out.append(CorrectionCurve(quantity, axes, unit, t, r, centre, values, sigmas,
+                                   bool(detrend)))
+    return tuple(out)
 
 
 def spline_columns(spline: JitterSpline, names: Sequence[str]) -> np.ndarray:

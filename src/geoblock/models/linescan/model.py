@@ -5,8 +5,8 @@ See :mod:`geoblock.models.linescan` for the geometry and the frames.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any, ClassVar, Self
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from geoblock.models.linescan.rotations import matrix_to_quaternion, orbital_fra
 from geoblock.models.parameters import ParameterSet, accuracy_or_stored, location_accuracy
 from geoblock.pixels import image_domain
 from geoblock.typing import ArrayLike, Float64Array, Status, StatusArray
+
+if TYPE_CHECKING:
+    from geoblock.models.curves import CorrectionCurve
 
 __all__ = ["LinescanModel"]
 
@@ -271,6 +274,17 @@ class LinescanModel(SensorModelBase):
         """The knot grid of the correction splines (:mod:`geoblock.models.linescan.jitter`),
         or None."""
         return self._jitter
+
+    def correction_curves(self, covariance: ArrayLike | None = None,
+                          names: Sequence[str] | None = None, *,
+                          rows: tuple[float, float] | None = None, samples: int = 200,
+                          detrend: bool = True) -> tuple[CorrectionCurve, ...]:
+        """The ``"jitter"`` set's attitude (and position) correction curves over the image
+        with their sigma bands, ``()`` without a :attr:`jitter` grid
+        (:class:`~geoblock.models.curves.HasCorrectionCurves`;
+        :func:`~geoblock.models.linescan.jitter.correction_curves`)."""
+        return _jitter.correction_curves(self, covariance, names, rows=rows, samples=samples,
+                                         detrend=detrend)
 
     @property
     def corrections(self) -> tuple[str, ...]:
