@@ -128,6 +128,8 @@ def test_constant_dem_and_minimal_block(tmp_path):
         ("method = 'mba'\nextra = 1\n[[images]]\nid = 'a'\nmodel = 'a'\n",
          r"unknown field\(s\) \['extra'\]"),
         ("method = 'mba\n", r"not a valid TOML file"),
+        ("method = 'dg'\n[[images]]\nid = 'a'\nmodel = 'a'\nparameter_options = { k = [1] }\n",
+         r"'parameter_options.k' must be a number, a string or a boolean"),
     ],
 )
 def test_invalid_block_files_name_the_field(tmp_path, text, message):
@@ -255,3 +257,30 @@ def test_dumps_toml_keeps_arrays_of_values_on_one_line():
     assert text == ('relief = [150.0, 1100.0]\nm = [[1, 2], [3]]\nmix = [1, {q = [1]}]\n\n'
                     '[t]\n"b c" = [true]\n')
     assert tomllib.loads(text)["mix"] == [1, {"q": [1]}]
+
+
+def test_parameter_options_reach_the_parameter_set(tmp_path):
+    """``parameter_options`` of an image go to its model's ``with_parameter_set``: the jitter
+    set's knot spacing from the block file; an option the set does not know names the image."""
+    from geoblock.io import open_block, write_model
+    from geoblock.models.linescan import LinescanModel
+
+    model = LinescanModel.example((600, 200)).replace(location_accuracy_m=10.0)
+    write_model(model, tmp_path / "a.json")
+    (tmp_path / "image.csv").write_text("id,image,row,col\np1,a,10.0,20.0\n")
+    text = ("method = 'dg'\n[points]\nimage = 'image.csv'\n[[images]]\nid = 'a'\n"
+            "model = 'a.json'\nparameters = 'jitter'\nparameter_options = { knot_lines = 50 }\n")
+    path = tmp_path / "block.toml"
+    path.write_text(text)
+    spec = read_block(path)
+    assert dict(spec.images[0].parameter_options) == {"knot_lines": 50}
+    assert read_block(write_block(tmp_path / "again.toml", spec)) == spec
+    opened = open_block(path)
+    jittered = opened.block.models["a"]
+    default = model.with_parameter_set("jitter")
+    assert jittered.jitter.interval_s == pytest.approx(
+        50 * model.line_times.period_magnitude_s)
+    assert jittered.jitter.interval_s != default.jitter.interval_s
+    path.write_text(text.replace("knot_lines = 50", "knot_spacing = 50"))
+    with pytest.raises(BlockFileError, match=r"images\[0\] \(a\).*knot_spacing"):
+        open_block(path)

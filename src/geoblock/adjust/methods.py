@@ -52,6 +52,7 @@ def prepare_model(
     parameters: str = "default",
     correction: int | None = None,
     accuracy_m: float | None = None,
+    options: Mapping[str, Any] | None = None,
     where: str = "model",
 ) -> SensorModel:
     """A model ready for the block engine: a parameter set chosen, optionally wrapped.
@@ -67,6 +68,9 @@ def prepare_model(
     accuracy_m : float, optional
         The product's location accuracy (1 sigma, metres), for presets that derive their
         sigmas from it.
+    options : mapping of str to value, optional
+        Further options of the parameter set (``model.with_parameter_set(parameters,
+        **options)``), such as ``knot_lines`` of a linescan model's ``jitter`` set.
     where : str
         Named in error messages (e.g. ``"block.toml: images[2]"``).
 
@@ -76,10 +80,12 @@ def prepare_model(
         Unknown parameter set or parameter name, or a set the model cannot build (the
         message names ``where`` and the model's sets).
     """
-    if parameters != "default" or accuracy_m is not None:
-        options = {} if accuracy_m is None else {"accuracy_m": float(accuracy_m)}
+    if parameters != "default" or accuracy_m is not None or options:
+        kwargs = dict(options or {})
+        if accuracy_m is not None:
+            kwargs["accuracy_m"] = float(accuracy_m)
         try:
-            model = model.with_parameter_set(parameters, **options)
+            model = model.with_parameter_set(parameters, **kwargs)
         except AttributeError:
             raise AdjustmentError(f"{where}: model {model.name!r} offers no parameter sets; "
                                   f"'{parameters}' cannot be used") from None

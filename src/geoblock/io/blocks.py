@@ -38,6 +38,7 @@ relative to the block file's directory. Example::
     raster = "strip1.tif"     # optional
     parameters = "dg"         # optional: a parameter set of the model (default: the method's)
     accuracy_m = 30.0         # optional: the product's accuracy, for the preset's sigmas
+    parameter_options = { knot_lines = 100 }   # optional: options of the parameter set
     sigmas = { dp_along = 10.0, roll_bias = 1e-5 }   # optional a-priori sigmas (0: fixed)
 
     [[images]]
@@ -124,6 +125,10 @@ class BlockImage:
     accuracy_m : float or None
         The product's location accuracy (1 sigma, metres), for presets whose a-priori sigmas
         derive from it (``dg``, ``mba``).
+    parameter_options : mapping of str to value
+        Further options of the parameter set, passed to the model's ``with_parameter_set``
+        (e.g. ``knot_lines``, ``sigma_rad`` of a linescan model's ``jitter`` set); the model
+        names the ones it does not know.
     """
 
     id: str
@@ -133,9 +138,11 @@ class BlockImage:
     sigmas: Mapping[str, float] = field(default_factory=dict)
     correction: int | None = None
     accuracy_m: float | None = None
+    parameter_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "sigmas", _readonly(dict(self.sigmas)))
+        object.__setattr__(self, "parameter_options", _readonly(dict(self.parameter_options)))
 
 
 @dataclass(frozen=True)
@@ -365,10 +372,16 @@ def read_block(path: str | os.PathLike[str]) -> Block:
                 raise BlockFileError(f"{where}: 'sigmas.{key}' must be a number, got {value!r}")
         correction = _take(item, "correction", int, where)
         accuracy = _take(item, "accuracy_m", (int, float), where)
-        _no_more(item, where, "id, model, raster, parameters, sigmas, correction, accuracy_m")
+        options = _take(item, "parameter_options", dict, where, default={})
+        for key, value in options.items():
+            if not isinstance(value, bool | int | float | str):
+                raise BlockFileError(f"{where}: 'parameter_options.{key}' must be a number, a "
+                                     f"string or a boolean, got {value!r}")
+        _no_more(item, where, "id, model, raster, parameters, sigmas, correction, accuracy_m, "
+                 "parameter_options")
         images.append(BlockImage(image_id, model, raster, parameters,
                                  {k: float(v) for k, v in sigmas.items()}, correction,
-                                 None if accuracy is None else float(accuracy)))
+                                 None if accuracy is None else float(accuracy), options))
 
     points = dict(_take(data, "points", dict, name, default={}))
     where = f"{name}: points"
@@ -464,6 +477,8 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
             item["correction"] = im.correction
         if im.accuracy_m is not None:
             item["accuracy_m"] = im.accuracy_m
+        if im.parameter_options:
+            item["parameter_options"] = dict(im.parameter_options)
         images.append(item)
     out["images"] = images
     return out
@@ -672,7 +687,7 @@ def open_block(path: str | os.PathLike[str] | Block, *, name: str | None = None
                 model, parameters=im.parameters if im.parameters is not None
                 else method["parameters"],
                 correction=im.correction if im.correction is not None else method["correction"],
-                accuracy_m=im.accuracy_m, where=where)
+                accuracy_m=im.accuracy_m, options=im.parameter_options, where=where)
         except AdjustmentError as exc:
             raise BlockFileError(str(exc)) from None
     dem = None
