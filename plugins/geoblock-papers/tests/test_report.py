@@ -104,6 +104,57 @@ def test_grid_splits_each_column_into_paper_and_ours(tmp_path):
         r.grid("other", ["a", "b"], [GridRow("bad", ["1"], [1.0, 2.0])])
 
 
+def test_series_put_one_column_of_ours_per_condition_beside_the_paper(tmp_path):
+    r = _report(tmp_path)
+    series = ("realistic", "bias-drift")
+    r.compare("factor", [Row("ICTP single / block", "7.0", estimate([4.0, 5.0, 6.0], ""),
+                             "a: small; b: small", alt=[estimate([1.0, 2.0, 3.0], "")])],
+              series=series)
+    r.grid("table_III", ["strips 1 & 2 E"],
+           [GridRow("MBA block ICTP", ["1.22"], [estimate([1.0, 2.0, 3.0])],
+                    alt=[[estimate([3.0, 4.0, 5.0])]])], series=series)
+    md = r.markdown()
+    assert ("| quantity | paper | geoblock, realistic | geoblock, bias-drift | verdict |"
+            in md)
+    assert "| ICTP single / block | 7.0 | 5.00 (" in md and "| 2.00 (" in md
+    assert ("|  | strips 1 & 2 E: paper | strips 1 & 2 E: geoblock realistic | strips 1 & 2 E: "
+            "geoblock bias-drift |") in md
+    assert "| MBA block ICTP | 1.22 | 2.00 (" in md and ") | 4.00 (" in md
+    row = r.results["factor"][0]
+    assert row["geoblock"]["mean"] == 5.0 and row["series"]["bias-drift"]["mean"] == 2.0
+    grid = r.results["table_III"]
+    assert grid["series"] == list(series)
+    assert grid["rows"][0]["series"]["realistic"][0]["mean"] == 2.0
+    assert grid["rows"][0]["series"]["bias-drift"][0]["mean"] == 4.0
+    with pytest.raises(ExperimentError, match="row 'q' has 0 further series for 1"):
+        r.compare("other", [Row("q", "1", 1.0)], series=series)
+    with pytest.raises(ExperimentError, match="two or more series or none"):
+        r.compare("other2", [Row("q", "1", 1.0)], series=("one",))
+    with pytest.raises(ExperimentError, match="row 'bad' has 1 paper and 1 geoblock cells"):
+        r.grid("other3", ["a", "b"], [GridRow("bad", ["1"], [1.0], alt=[[1.0, 2.0]])],
+               series=series)
+
+
+def test_findings_may_carry_one_verdict_per_series(tmp_path):
+    r = _report(tmp_path)
+    r.finding("f1", "block helps", None, "**a:** 2x. **b:** 5x",
+              series={"a": None, "b": True})
+    r.finding("f2", "ICPs rise", False, "no", series={"a": False, "b": False})
+    with pytest.raises(ExperimentError, match="must name two or more and start with"):
+        r.finding("f3", "x", True, "y", series={"a": False, "b": True})
+    with pytest.raises(ExperimentError, match="differ from the other findings'"):
+        r.finding("f4", "x", True, "y", series={"b": True, "a": True})
+    with pytest.raises(ExperimentError, match="differ from the other findings'"):
+        r.finding("f5", "x", True, "y")
+    md = r.markdown()
+    assert "| finding (paper) | here, a | here, b | evidence |" in md
+    assert "| block helps | partly | reproduced | **a:** 2x. **b:** 5x |" in md
+    paths = r.write()
+    data = json.loads(paths["results"].read_text())
+    assert data["findings"][0]["series"] == {"a": None, "b": True}
+    assert data["findings"][0]["reproduced"] is None
+
+
 def test_plain_table_checks_its_shape_and_escapes_cells(tmp_path):
     r = _report(tmp_path)
     r.table(["method", "value"], [["a|b", estimate([1.0, 3.0])]], key="plain")
@@ -120,6 +171,11 @@ def test_plain_table_checks_its_shape_and_escapes_cells(tmp_path):
 def test_report_rejects_a_bad_variant_or_no_seed(tmp_path):
     with pytest.raises(ExperimentError, match="variant"):
         Report("x", "t", "c", variant="huge", seeds=[0], outdir=tmp_path)
+    with pytest.raises(ExperimentError, match="variant must be one of 'small', 'full'"):
+        Report("x", "t", "c", variant="case2", seeds=[0], outdir=tmp_path)
+    r = Report("x", "t", "c", variant="case2", seeds=[0], outdir=tmp_path,
+               variants=("small", "full", "case2"))
+    assert r.variant == "case2"
     with pytest.raises(ExperimentError, match="no seed"):
         Report("x", "t", "c", variant="small", seeds=[], outdir=tmp_path)
 
@@ -203,6 +259,36 @@ def test_run_experiment_runs_the_seeds_and_writes_the_report(tmp_path, fake):
     assert data["seeds"] == [10, 11] and data["results"]["seeds"][0]["geoblock"]["mean"] == 10.5
     run_experiment("fake", tmp_path / "o", full=True, repeats=3)
     assert calls[-1] == (True, (0, 1, 2))
+
+
+def test_an_experiment_with_more_variants_gets_the_variant(tmp_path, fake, monkeypatch):
+    module, calls = fake
+    module.SEEDS = {"small": 2, "full": 5, "case2": 1, "case2-full": 3}
+    got = []
+
+    def run(report, *, full, seeds, progress, variant):
+        got.append((variant, full, tuple(seeds)))
+        report.compare("seeds", [Row("seed", "-", estimate(seeds, ""))])
+
+    module.run = run
+    monkeypatch.setitem(EXPERIMENTS, "fake", registry._Entry(
+        "fake_experiment", "a fake", more_variants={"case2": "II", "case2-full": "II, full"}))
+    assert EXPERIMENTS["fake"].variants == ("small", "full", "case2", "case2-full")
+    assert "case2-full" in registry.all_variants()
+    result = run_experiment("fake", tmp_path / "o", variant="case2")
+    run_experiment("fake", tmp_path / "p", variant="case2-full")
+    run_experiment("fake", tmp_path / "q", full=True)
+    assert got == [("case2", False, (0,)), ("case2-full", True, (0, 1, 2)),
+                   ("full", True, (0, 1, 2, 3, 4))]
+    assert json.loads(result.results.read_text())["variant"] == "case2"
+    with pytest.raises(ExperimentError, match="experiment fake has no variant 'case3'; its "
+                                              "variants: small, full, case2, case2-full"):
+        run_experiment("fake", tmp_path / "r", variant="case3")
+    del module.SEEDS["case2"]
+    with pytest.raises(ExperimentError, match="'case2': n"):
+        run_experiment("fake", tmp_path / "s", variant="case2")
+    assert registry.is_full("full") and registry.is_full("case2-full")
+    assert not registry.is_full("case2") and not registry.is_full("small")
 
 
 def test_run_experiment_checks_its_options_before_running(tmp_path, fake):

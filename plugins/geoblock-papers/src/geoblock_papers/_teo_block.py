@@ -3,18 +3,26 @@
 Both papers adjust the same three SPOT-5 strips (case I of Teo et al.: one scene per strip)
 with the same three methods; :mod:`geoblock_papers.teo2010` and
 :mod:`geoblock_papers.chen2008` format the statistics computed here against each paper's
-tables.
+tables. Teo et al.'s case II (two scenes per strip) is the variant ``case2`` (:data:`CASES`).
 
-One repetition (:func:`seed_outcome`, kept per seed and variant so that both experiments
-run in one process share it):
+Each repetition is run under both on-board error models of the simulator
+(:data:`ERROR_MODELS`: ``"realistic"``, attitude wander, interior orientation and
+orbital-period ephemeris errors besides the biases and drifts, and ``"bias-drift"``, the
+biases and linear drifts alone), on the same terrain, DEMs and point draws: the two columns
+of every table differ by the error model only.
+
+One repetition under one error model (:func:`seed_outcome`, kept per seed, variant and error
+model so that both experiments run in one process share it):
 
 1. simulates the ``teo2010-spot5`` preset in memory (:mod:`geoblock.simulate.scene`, the
-   block :func:`geoblock.workflows.run_scenario` would write) with the repetition's seed:
-   new terrain, DEM, on-board errors and points. As in the papers, whose GCPs came from
+   block :func:`geoblock.workflows.run_scenario` would write) with the repetition's seed and
+   the error model: new terrain, DEM, on-board errors and points (the terrain and DEMs are
+   computed once per seed and variant when both error models' footprints give the same
+   grid). As in the papers, whose GCPs came from
    1:5000 maps while the TPs were measured where the strips overlap, the GCPs lie away from
    the overlaps: 27 are drawn per strip (3 per cell of a 3 x 3 grid) and the 9 nearest the
    strip's centre column are kept (:func:`central_gcps`); TPs and ICTPs are drawn in the
-   ranges of Teo et al.'s Table III (13-19 and 13-18 per overlap);
+   ranges of Teo et al.'s Table III (13-19 and 13-18 per overlap; case II: :data:`CASES`);
 2. builds the three methods' models from the on-board models: **MBA** Chen & Lee's
    polynomial model fitted to the on-board model (:func:`geoblock_spot.fit.fit_chenlee` with
    the strip's own interior geometry, its ``mba`` parameter set), **DG** the on-board
@@ -38,7 +46,10 @@ adjusted heights, metres), ``"{method}/{run}/sigma0"``, ``"{method}/{run}/conver
 ``"onboard/ictp/{pair}/{stat}"``, ``"truth/ictp/{pair}/{stat}"``;
 ``"count/{kind}/{strip or pair}"``; ``"incidence/{strip}"``, ``"gsd/{strip}"`` (degrees,
 metres); ``"terrain/min"``, ``"terrain/max"``, ``"terrain/max_slope"`` (metres, degrees);
-``"dem/tp_rmse"`` (the DEM's height error at the TPs, metres).
+``"dem/tp_rmse"`` (the DEM's height error at the TPs, metres);
+``"onboard/{strip}/nonaffine_2d"`` (the part of the on-board ground error that no affine
+function of row and column removes, over a 15 x 15 grid at the scene centre's height: what
+the realistic error model adds that a single strip's GCPs cannot extrapolate, metres).
 """
 
 from __future__ import annotations
@@ -56,7 +67,7 @@ import geoblock
 from geoblock.adjust import Block, BlockResult, GroundPoints, ImagePoints, adjust, ictp_accuracy
 from geoblock.adjust.statistics import AccuracyStats, IctpDiscrepancies, PointErrors
 from geoblock.simulate.points import PointSet
-from geoblock.simulate.scenario import Scenario, derived_seed, preset_dict, scenario_from_dict
+from geoblock.simulate.scenario import Scenario, derived_seed, scenario_from_dict
 from geoblock.simulate.scene import (
     scene_dem,
     scene_grid,
@@ -66,26 +77,38 @@ from geoblock.simulate.scene import (
 )
 from geoblock.simulate.sensors import SimulatedSensor, incidence_angle
 from geoblock.simulate.study import onboard_errors
-from geoblock.simulate.terrain import measured_dem
-from geoblock_papers.registry import ExperimentError
+from geoblock.simulate.terrain import Grid, measured_dem
+from geoblock_papers._teo_cases import (
+    CASES,
+    ERROR_MODELS,
+    VARIANTS,
+    Case,
+    available_error_models,
+    case_of,
+    scenario_dict,
+)
+from geoblock_papers.registry import ExperimentError, is_full
 from geoblock_papers.report import Estimate, estimate
 
 __all__ = [
     "CACHE_SIZE",
-    "GCPS_PER_STRIP",
-    "GCP_CANDIDATES",
-    "ICTP_RANGE",
+    "CASES",
+    "ERROR_MODELS",
     "METHODS",
     "PAIRS",
     "POOR_DEM_RMSE_M",
     "RUNS",
     "STRIPS",
-    "TP_RANGE",
+    "VARIANTS",
+    "Case",
     "Outcomes",
     "Run",
     "SeedOutcome",
+    "Study",
     "TeoBlock",
     "Vectors",
+    "available_error_models",
+    "case_of",
     "central_gcps",
     "is_cached",
     "method_models",
@@ -93,6 +116,7 @@ __all__ = [
     "scenario_dict",
     "seed_outcome",
     "simulate_block",
+    "study",
 ]
 
 STRIPS = ("strip1", "strip2", "strip3")
@@ -137,33 +161,12 @@ RUNS: dict[str, Run] = {
 #: RMSEz of the poor DEM, metres: what a 40 m DEM may reach over steep mountains (Teo et
 #: al.: "the vertical accuracy in the hilly area could be larger than the estimated value")
 POOR_DEM_RMSE_M = 25.0
-#: GCPs per strip (Teo et al. Table I), kept from :data:`GCP_CANDIDATES` drawn per strip
-GCPS_PER_STRIP = 9
-#: GCPs drawn per strip: three per cell of the 3 x 3 grid, so that the 9 nearest the centre
-#: column cover the strip's length
-GCP_CANDIDATES = 27
-#: TPs and ICTPs per overlap, drawn in these ranges (Teo et al. Table III: 19 and 13 TPs, 18
-#: and 13 ICTPs)
-TP_RANGE = (13, 19)
-ICTP_RANGE = (13, 18)
 #: sigma of the DEM heights given to the adjustment, metres (the preset's DEM RMSEz)
 DEM_SIGMA_M = 5.0
 #: the runs whose error vectors the figures show
 _VECTOR_RUNS = ("single", "block")
 
-
 # ================================================================================ block
-def scenario_dict(seed: int, full: bool) -> dict[str, Any]:
-    """The ``teo2010-spot5`` preset (``full`` or ``small``) with ``seed`` and the point
-    counts above (:data:`GCP_CANDIDATES`, :data:`TP_RANGE`, :data:`ICTP_RANGE`)."""
-    data = preset_dict("teo2010-spot5", "full" if full else "small")
-    data["seed"] = int(seed)
-    data["points"].update(gcp=GCP_CANDIDATES, tp=list(TP_RANGE), ictp=list(ICTP_RANGE))
-    data["description"] += (f"; {GCP_CANDIDATES} GCP candidates per strip of which the "
-                            f"{GCPS_PER_STRIP} nearest the centre column are kept")
-    return data
-
-
 @dataclass(frozen=True, eq=False)
 class TeoBlock:
     """One simulated block, in memory.
@@ -185,6 +188,8 @@ class TeoBlock:
         Their image measurements and the TPs' and ICTPs', kinds resolved.
     terrain : tuple of float
         Lowest and highest true height, and the steepest true slope (metres, degrees).
+    variant, errors : str
+        The variant (:data:`VARIANTS`) and the on-board error model.
     """
 
     scenario: Scenario
@@ -195,10 +200,12 @@ class TeoBlock:
     ground: GroundPoints
     measurements: ImagePoints
     terrain: tuple[float, float, float]
+    variant: str = "small"
+    errors: str = "bias-drift"
 
 
 def central_gcps(measurements: ImagePoints, shapes: Mapping[str, tuple[int, int]],
-                 count: int) -> np.ndarray:
+                 count: int | Mapping[str, int]) -> np.ndarray:
     """The ids of the ``count`` GCPs of each image nearest its centre column.
 
     Parameters
@@ -207,7 +214,8 @@ def central_gcps(measurements: ImagePoints, shapes: Mapping[str, tuple[int, int]
         Kinds resolved.
     shapes : mapping of str to (int, int)
         ``(rows, cols)`` per image.
-    count : int
+    count : int or mapping of str to int
+        GCPs kept per image (the same for all, or by image).
 
     Returns
     -------
@@ -221,36 +229,83 @@ def central_gcps(measurements: ImagePoints, shapes: Mapping[str, tuple[int, int]
     """
     kept = []
     for image, (_, cols) in shapes.items():  # a loop over the three strips
+        want = int(count) if isinstance(count, int) else int(count[image])
         sel = (measurements.kind == "gcp") & (measurements.image == image)
-        if int(sel.sum()) < count:
+        if int(sel.sum()) < want:
             raise ExperimentError(f"teo block: image {image} has {int(sel.sum())} GCPs, "
-                                  f"fewer than the {count} wanted")
+                                  f"fewer than the {want} wanted")
         offset = np.abs(measurements.col[sel] - (cols - 1) / 2.0)
-        kept.append(measurements.id[sel][np.argsort(offset, kind="stable")[:count]])
+        kept.append(measurements.id[sel][np.argsort(offset, kind="stable")[:want]])
     return np.concatenate(kept)
 
 
-def simulate_block(seed: int, full: bool = False) -> TeoBlock:
-    """Simulate the block of one repetition in memory (module docstring, step 1)."""
-    scenario = scenario_from_dict(scenario_dict(seed, full))
-    sensors = scene_sensors(scenario)
-    truth = true_terrain(scenario, scene_grid(scenario, sensors))
+@dataclass(frozen=True, eq=False)
+class _Ground:
+    """The true terrain and the measured DEMs of a seed and variant, on ``grid``."""
+
+    grid: Grid
+    truth: Any
+    dem: Any
+    poor_dem: Any
+
+
+#: the last seed's terrain and DEMs, by ``(seed, variant)``: both error models use them
+_GROUND: OrderedDict[tuple[int, str], _Ground] = OrderedDict()
+
+
+def _same_grid(a: Grid, b: Grid) -> bool:
+    return a.shape == b.shape and a.transform == b.transform and a.crs == b.crs
+
+
+def _ground(scenario: Scenario, sensors: Mapping[str, SimulatedSensor],
+            key: tuple[int, str]) -> _Ground:
+    """The terrain and DEMs of ``scenario`` on the grid its sensors' footprints give; those
+    of the same seed and variant under another error model when the grid is the same (the
+    terrain and DEMs depend on the grid and the seed only)."""
+    grid = scene_grid(scenario, sensors)
+    known = _GROUND.get(key)
+    if known is not None and _same_grid(known.grid, grid):
+        return known
+    truth = true_terrain(scenario, grid)
     dem = scene_dem(scenario, truth, 0).to_dem()
-    spacing = scenario.dems[0].spacing_m
     # seeded as a second DEM of the scenario would be (the preset has one)
-    poor_dem = measured_dem(truth, spacing, POOR_DEM_RMSE_M,
+    poor_dem = measured_dem(truth, scenario.dems[0].spacing_m, POOR_DEM_RMSE_M,
                             seed=derived_seed(scenario.seed, 3, len(scenario.dems))).to_dem()
+    _GROUND.clear()
+    _GROUND[key] = _Ground(grid, truth, dem, poor_dem)
+    return _GROUND[key]
+
+
+def simulate_block(seed: int, variant: str = "small", errors: str | None = None) -> TeoBlock:
+    """Simulate the block of one repetition in memory (module docstring, step 1).
+
+    Parameters
+    ----------
+    seed : int
+    variant : str
+        A key of :data:`VARIANTS`.
+    errors : str, optional
+        The on-board error model (:data:`ERROR_MODELS`; default the simulator's).
+    """
+    case = case_of(variant)
+    scenario = scenario_from_dict(scenario_dict(seed, variant, errors))
+    sensors = scene_sensors(scenario)
+    ground = _ground(scenario, sensors, (int(seed), variant))
+    truth = ground.truth
     points = scene_points(scenario, sensors, truth.to_dem())
-    ground, meas = points.observations()
-    meas = meas.resolve_kinds(ground)
+    observed, meas = points.observations()
+    meas = meas.resolve_kinds(observed)
     keep = central_gcps(meas, {i: s.true_model.shape for i, s in sensors.items()},
-                        GCPS_PER_STRIP)
-    gcp_ids = ground.id[ground.kind == "gcp"]
+                        dict(zip(sensors, case.gcps, strict=True)))
+    gcp_ids = observed.id[observed.kind == "gcp"]
     drop = gcp_ids[~np.isin(gcp_ids, keep)]
     lo, hi = truth.relief
-    return TeoBlock(scenario, sensors, dem, poor_dem, points,
-                    ground.subset(~np.isin(ground.id, drop)), meas.subset(~np.isin(meas.id, drop)),
-                    (float(lo), float(hi), float(np.nanmax(truth.slope_deg()))))
+    used = errors or str(getattr(next(iter(sensors.values())).spec, "onboard_errors",
+                                 "bias-drift"))
+    return TeoBlock(scenario, sensors, ground.dem, ground.poor_dem, points,
+                    observed.subset(~np.isin(observed.id, drop)),
+                    meas.subset(~np.isin(meas.id, drop)),
+                    (float(lo), float(hi), float(np.nanmax(truth.slope_deg()))), variant, used)
 
 
 def method_models(sensors: Mapping[str, SimulatedSensor],
@@ -314,7 +369,10 @@ class SeedOutcome:
     Attributes
     ----------
     seed : int
-    full : bool
+    variant : str
+        A key of :data:`VARIANTS`.
+    errors : str
+        The on-board error model (:data:`ERROR_MODELS`).
     values : dict of str to float
         Flat statistics (the module docstring lists the keys); NaN where undefined.
     ties : dict of str to Vectors
@@ -326,7 +384,8 @@ class SeedOutcome:
     """
 
     seed: int
-    full: bool
+    variant: str
+    errors: str
     values: dict[str, float]
     ties: dict[str, Vectors]
     checks: dict[str, Vectors]
@@ -396,29 +455,44 @@ def _measure_run(values: dict[str, float], prefix: str, result: BlockResult, tb:
     return ties, _check_vectors(result.check, tb.ground)
 
 
-#: outcomes computed in this process, by ``(seed, full)``, oldest first
-_CACHE: OrderedDict[tuple[int, bool], SeedOutcome] = OrderedDict()
+#: outcomes computed in this process, by ``(seed, variant, error model)``, oldest first
+_CACHE: OrderedDict[tuple[int, str, str], SeedOutcome] = OrderedDict()
 #: outcomes kept in :data:`_CACHE` (a few hundred kB each)
 CACHE_SIZE = 64
 
 
-def is_cached(seed: int, full: bool = False) -> bool:
-    """Whether :func:`seed_outcome` of ``(seed, full)`` is already computed in this
-    process."""
-    return (int(seed), bool(full)) in _CACHE
+def is_cached(seed: int, variant: str = "small", errors: str = ERROR_MODELS[0]) -> bool:
+    """Whether :func:`seed_outcome` of ``(seed, variant, errors)`` is already computed in
+    this process."""
+    return (int(seed), str(variant), str(errors)) in _CACHE
 
 
-def seed_outcome(seed: int, full: bool = False) -> SeedOutcome:
-    """Simulate, adjust and measure one repetition (module docstring); kept per
-    ``(seed, full)`` in this process (the last :data:`CACHE_SIZE`), so that teo2010 and
-    chen2008 share it.
+def seed_outcome(seed: int, variant: str = "small",
+                 errors: str = ERROR_MODELS[0]) -> SeedOutcome:
+    """Simulate, adjust and measure one repetition under one on-board error model (module
+    docstring); kept per ``(seed, variant, errors)`` in this process (the last
+    :data:`CACHE_SIZE`), so that teo2010 and chen2008 share it.
+
+    Parameters
+    ----------
+    seed : int
+    variant : str
+        A key of :data:`VARIANTS`.
+    errors : str
+        One of :func:`available_error_models`.
 
     Raises
     ------
+    ExperimentError
+        An unknown variant or error model.
     GeoblockError
         The simulation or an adjustment failed (the message says which).
     """
-    key = (int(seed), bool(full))
+    case_of(variant)
+    if errors not in available_error_models():
+        raise ExperimentError(f"teo block: on-board error model {errors!r} is not one of the "
+                              f"simulator's: {', '.join(available_error_models())}")
+    key = (int(seed), str(variant), str(errors))
     if key not in _CACHE:
         _CACHE[key] = _compute_outcome(*key)
         while len(_CACHE) > CACHE_SIZE:
@@ -426,9 +500,20 @@ def seed_outcome(seed: int, full: bool = False) -> SeedOutcome:
     return _CACHE[key]
 
 
-def _compute_outcome(seed: int, full: bool) -> SeedOutcome:
+def _nonaffine_2d(sim: SimulatedSensor) -> float:
+    """RMS of the on-board ground error left by an affine function of row and column (15 x
+    15 grid at the scene centre's height), metres."""
+    err = sim.onboard_error(n=15)
+    basis = np.stack([np.ones(err.row.size), err.row.ravel(), err.col.ravel()], axis=-1)
+    values = np.stack([err.de.ravel(), err.dn.ravel()], axis=-1)
+    coef = np.linalg.lstsq(basis, values, rcond=None)[0]
+    return float(np.sqrt(np.mean(np.sum((values - basis @ coef) ** 2, axis=-1))))
+
+
+def _compute_outcome(seed: int, variant: str, errors: str) -> SeedOutcome:
     clock = time.perf_counter()
-    tb = simulate_block(seed, full)
+    tb = simulate_block(seed, variant, errors if errors != "bias-drift"
+                        or len(available_error_models()) > 1 else None)
     seconds = {"simulate": time.perf_counter() - clock}
     values: dict[str, float] = {}
     meas, pts = tb.measurements, tb.points
@@ -456,7 +541,8 @@ def _compute_outcome(seed: int, full: bool) -> SeedOutcome:
         st = ob.select(image=strip).stats()
         values.update({f"onboard/{strip}/mean_e": st.mean_e, f"onboard/{strip}/mean_n": st.mean_n,
                        f"onboard/{strip}/rmse_e": st.rmse_e, f"onboard/{strip}/rmse_n": st.rmse_n,
-                       f"onboard/{strip}/rmse_2d": st.rmse_2d})
+                       f"onboard/{strip}/rmse_2d": st.rmse_2d,
+                       f"onboard/{strip}/nonaffine_2d": _nonaffine_2d(tb.sensors[strip])})
     ictp = meas.kind == "ictp"
     for who, given in (("onboard", {i: s.onboard_model for i, s in tb.sensors.items()}),
                        ("truth", {i: s.true_model for i, s in tb.sensors.items()})):
@@ -493,7 +579,7 @@ def _compute_outcome(seed: int, full: bool) -> SeedOutcome:
             if run in _VECTOR_RUNS:
                 ties[f"{method}/{run}"], checks[f"{method}/{run}"] = tie, check
     seconds["adjust"] = time.perf_counter() - clock
-    return SeedOutcome(int(seed), bool(full), values, ties, checks, seconds)
+    return SeedOutcome(int(seed), variant, errors, values, ties, checks, seconds)
 
 
 # ================================================================================ seeds
@@ -539,19 +625,67 @@ class Outcomes:
         return {k: [o.values.get(k, math.nan) for o in self.items] for k in keys}
 
 
-def outcomes(seeds: Sequence[int], full: bool,
+@dataclass(frozen=True, eq=False)
+class Study:
+    """The repetitions of a variant under each on-board error model.
+
+    Attributes
+    ----------
+    variant : str
+        A key of :data:`VARIANTS`.
+    by_model : dict of str to Outcomes
+        Error model -> its repetitions, in :data:`ERROR_MODELS` order (the simulator's
+        default first).
+    """
+
+    variant: str
+    by_model: dict[str, Outcomes]
+
+    @property
+    def models(self) -> tuple[str, ...]:
+        """The error models, the default first."""
+        return tuple(self.by_model)
+
+    @property
+    def primary(self) -> Outcomes:
+        """The default error model's repetitions."""
+        return self.by_model[self.models[0]]
+
+    @property
+    def case(self) -> Case:
+        return case_of(self.variant)
+
+    @property
+    def full(self) -> bool:
+        return is_full(self.variant)
+
+
+def outcomes(seeds: Sequence[int], variant: str = "small", errors: str = ERROR_MODELS[0],
              progress: Callable[[str], None] | None = None) -> Outcomes:
-    """:func:`seed_outcome` of each seed, with a progress line per seed."""
+    """:func:`seed_outcome` of each seed under one error model, with a progress line per
+    seed."""
+    return study(seeds, variant, (errors,), progress).by_model[errors]
+
+
+def study(seeds: Sequence[int], variant: str = "small",
+          models: Sequence[str] | None = None,
+          progress: Callable[[str], None] | None = None) -> Study:
+    """:func:`seed_outcome` of each seed under each error model (default
+    :func:`available_error_models`), seed after seed (both models of a seed share its
+    terrain), with a progress line per seed and model."""
     say = progress or (lambda message: None)
-    items = []
+    models = tuple(models or available_error_models())
+    items: dict[str, list[SeedOutcome]] = {m: [] for m in models}
     for k, seed in enumerate(seeds):
-        cached = is_cached(seed, full)
-        outcome = seed_outcome(int(seed), bool(full))
-        if not cached:
-            s = outcome.seconds
-            say(f"  seed {seed} ({k + 1}/{len(seeds)}): simulated in {s['simulate']:.1f} s, "
-                f"3 methods x {len(RUNS)} adjustments in {s['models'] + s['adjust']:.1f} s")
-        else:
-            say(f"  seed {seed} ({k + 1}/{len(seeds)}): already computed in this process")
-        items.append(outcome)
-    return Outcomes(tuple(items))
+        for model in models:
+            cached = is_cached(seed, variant, model)
+            outcome = seed_outcome(int(seed), variant, model)
+            where = f"  seed {seed} ({k + 1}/{len(seeds)}), {model} errors:"
+            if not cached:
+                s = outcome.seconds
+                say(f"{where} simulated in {s['simulate']:.1f} s, 3 methods x {len(RUNS)} "
+                    f"adjustments in {s['models'] + s['adjust']:.1f} s")
+            else:
+                say(f"{where} already computed in this process")
+            items[model].append(outcome)
+    return Study(variant, {m: Outcomes(tuple(v)) for m, v in items.items()})

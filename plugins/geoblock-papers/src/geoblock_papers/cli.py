@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from geoblock.cli.options import check_outputs, deprecated_aliases, overwrite_opt
-from geoblock_papers.registry import EXPERIMENTS
+from geoblock_papers.registry import EXPERIMENTS, all_variants
 
 __all__ = ["experiment"]
 
@@ -17,6 +17,8 @@ def _names_help() -> str:
         if entry.runtime:
             times = ", ".join(f"{variant} {t}" for variant, t in entry.runtime.items())
             lines.append(f"  {'':<12} run time on 2 cores: {times}")
+        for variant, note in entry.more_variants.items():
+            lines.append(f"  {'':<12} --variant {variant}: {note}")
     return "\n".join(lines)
 
 
@@ -41,6 +43,7 @@ before anything is run unless --overwrite (then files of the same name are repla
 \b
 Examples:
   geoblock experiment teo2010
+  geoblock experiment teo2010 out/teo-case2 --variant case2
   geoblock experiment chen2008 out/chen2008 --repeats 6 --seed 100
   geoblock experiment aguilar2007 /tmp/aguilar --variant full --repeats 20
 """
@@ -51,10 +54,11 @@ Examples:
                short_help="Reproduce a paper's experiments on simulated blocks, with a report.")
 @click.argument("name", type=click.Choice(list(EXPERIMENTS)), metavar="NAME")
 @click.argument("outdir", metavar="[OUTDIR]", required=False, default=None)
-@click.option("--variant", type=click.Choice(["small", "full"]), default="small",
+@click.option("--variant", type=click.Choice(list(all_variants())), default="small",
               show_default=True,
               help="small: shrunk images, the papers' set-up (seconds to a minute, the one CI "
-              "runs); full: the papers' image sizes and more repetitions (minutes to hours).")
+              "runs); full: the papers' image sizes and more repetitions (minutes to hours); "
+              "some experiments have more (listed under NAME above).")
 @click.option("--repeats", type=click.IntRange(min=1), default=None, metavar="N",
               help="Repetitions over seeds (default: the experiment's, for the variant).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
@@ -66,9 +70,13 @@ def experiment(name: str, outdir: str | None, variant: str, repeats: int | None,
 
     from geoblock_papers.registry import run_experiment
 
+    if variant not in EXPERIMENTS[name].variants:
+        raise click.BadParameter(f"experiment {name} has no variant {variant!r}; its "
+                                 f"variants: {', '.join(EXPERIMENTS[name].variants)}",
+                                 param_hint="'--variant'")
     path = Path(outdir) if outdir else Path(f"experiment-{name}")
     check_outputs({"OUTDIR": path}, overwrite=overwrite, directories=["OUTDIR"])
-    result = run_experiment(name, path, full=variant == "full", repeats=repeats, seed=seed,
+    result = run_experiment(name, path, variant=variant, repeats=repeats, seed=seed,
                             progress=lambda m: click.echo(m, err=True))
     click.echo(f"report: {result.report}")
     click.echo(f"results: {result.results}")

@@ -7,11 +7,18 @@ An experiment is a module with:
 ``CITATION`` : str
     The paper, as cited in ``../shared/papers/README.md``.
 ``SEEDS`` : dict
-    Repetitions per variant, e.g. ``{"small": 3, "full": 10}``.
+    Repetitions per variant, e.g. ``{"small": 3, "full": 10}`` (one entry per variant of
+    its :data:`EXPERIMENTS` entry).
 ``run(report, *, full, seeds, progress)``
     Simulates and adjusts, once per seed of ``seeds``, and fills ``report``
     (:class:`~geoblock_papers.report.Report`): sections, side-by-side tables with the paper's
-    figures, findings (reproduced or not, and why), figures and results.
+    figures, findings (reproduced or not, and why), figures and results. An experiment with
+    variants beyond ``small`` and ``full`` (teo2010's ``case2``) takes ``variant`` too:
+    ``run(report, *, full, seeds, progress, variant)``.
+
+Every experiment has the variants ``small`` and ``full``; an entry may list more, e.g.
+teo2010's ``case2`` and ``case2-full`` (Teo et al.'s case II). A variant named ``full`` or
+ending in ``-full`` uses the papers' image sizes (``full=True``).
 """
 
 from __future__ import annotations
@@ -27,8 +34,8 @@ from typing import Any
 
 from geoblock.errors import GeoblockError
 
-__all__ = ["EXPERIMENTS", "ExperimentError", "ExperimentResult", "experiment_module",
-           "run_experiment"]
+__all__ = ["EXPERIMENTS", "ExperimentError", "ExperimentResult", "all_variants",
+           "experiment_module", "is_full", "run_experiment"]
 
 
 class ExperimentError(GeoblockError, ValueError):
@@ -37,20 +44,42 @@ class ExperimentError(GeoblockError, ValueError):
 
 @dataclass(frozen=True)
 class _Entry:
-    """An experiment of :data:`EXPERIMENTS`: its module, a one-line summary and its run times
-    (``{"small": "~20 s", "full": "~4 min"}``: shown by ``--help``; empty when unmeasured)."""
+    """An experiment of :data:`EXPERIMENTS`: its module, a one-line summary, its run times
+    (``{"small": "~20 s", "full": "~4 min"}``: shown by ``--help``; empty when unmeasured)
+    and its variants (``small`` and ``full``, then any more, each with a one-line note)."""
 
     module: str
     summary: str
     runtime: dict[str, str] = field(default_factory=dict)
+    more_variants: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def variants(self) -> tuple[str, ...]:
+        """``("small", "full", *more_variants)``."""
+        return ("small", "full", *self.more_variants)
+
+
+def is_full(variant: str) -> bool:
+    """Whether a variant uses the papers' image sizes: ``full`` or a name ending in
+    ``-full``."""
+    return variant == "full" or variant.endswith("-full")
+
+
+def all_variants() -> tuple[str, ...]:
+    """Every variant of any experiment, in order (``--variant``'s choices)."""
+    return tuple(dict.fromkeys(v for e in EXPERIMENTS.values() for v in e.variants))
 
 
 #: Experiment name -> its module and a one-line summary (``geoblock experiment --help``).
 EXPERIMENTS: dict[str, _Entry] = {
     "teo2010": _Entry("geoblock_papers.teo2010",
                       "Teo et al. 2010: MBA, DG and RFM, single vs block, on three SPOT-5 "
-                      "strips; DEM control, collocation",
-                      {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"}),
+                      "strips; DEM control, collocation; realistic and bias-drift on-board "
+                      "errors side by side",
+                      {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"},
+                      {"case2": "case II: two scenes per strip (Tables IV, VII, VIII), "
+                                "small images",
+                       "case2-full": "case II at the papers' image sizes"}),
     "chen2008": _Entry("geoblock_papers.chen2008",
                        "Chen, Teo & Lo 2008: the conference version's tables (the teo2010 "
                        "block)", {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"}),
@@ -104,9 +133,11 @@ def experiment_module(name: str) -> ModuleType:
     module = importlib.import_module(EXPERIMENTS[name].module)
     missing = [a for a in ("TITLE", "CITATION", "run") if not hasattr(module, a)]
     seeds = getattr(module, "SEEDS", None)
+    variants = EXPERIMENTS[name].variants
     if not (isinstance(seeds, dict) and all(
-            isinstance(seeds.get(v), int) and seeds[v] >= 1 for v in ("small", "full"))):
-        missing.append("SEEDS = {'small': n, 'full': m} with n, m >= 1")
+            isinstance(seeds.get(v), int) and seeds[v] >= 1 for v in variants)):
+        missing.append("SEEDS = {" + ", ".join(f"'{v}': n" for v in variants)
+                       + "} with n >= 1")
     if missing:
         raise ExperimentError(f"experiment {name}: module {module.__name__} lacks "
                               f"{', '.join(missing)}")
@@ -121,6 +152,7 @@ def run_experiment(
     repeats: int | None = None,
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
+    variant: str | None = None,
 ) -> ExperimentResult:
     """Run experiment ``name`` and write its report into ``outdir`` (created if absent; files
     of the same name are replaced).
@@ -139,6 +171,9 @@ def run_experiment(
         The first seed; repetition ``k`` uses ``seed + k``.
     progress : callable, optional
         Called with one-line messages.
+    variant : str, optional
+        One of the experiment's variants (:data:`EXPERIMENTS`); default ``"full"`` if
+        ``full`` else ``"small"``.
 
     Returns
     -------
@@ -147,8 +182,8 @@ def run_experiment(
     Raises
     ------
     ExperimentError
-        Unknown ``name``, ``repeats < 1``, ``seed < 0``, or ``outdir`` is a file (checked
-        before anything runs).
+        Unknown ``name``, a variant the experiment lacks, ``repeats < 1``, ``seed < 0``,
+        or ``outdir`` is a file (checked before anything runs).
     GeoblockIOError
         ``outdir`` or a file in it cannot be written.
     GeoblockError
@@ -157,7 +192,12 @@ def run_experiment(
     from geoblock_papers.report import Report
 
     module = experiment_module(name)
-    variant = "full" if full else "small"
+    variants = EXPERIMENTS[name].variants
+    variant = variant or ("full" if full else "small")
+    if variant not in variants:
+        raise ExperimentError(f"experiment {name} has no variant {variant!r}; its variants: "
+                              f"{', '.join(variants)}")
+    full = is_full(variant)
     count = int(repeats) if repeats is not None else int(module.SEEDS[variant])
     if count < 1:
         raise ExperimentError(f"experiment {name}: repeats must be >= 1, got {count}")
@@ -170,10 +210,13 @@ def run_experiment(
     say = progress or (lambda message: None)
     start = time.perf_counter()
     report = Report(name, module.TITLE, module.CITATION, variant=variant, seeds=seeds,
-                    outdir=Path(outdir))
+                    outdir=Path(outdir), variants=variants)
     say(f"experiment {name} ({variant}, {count} seed{'s' if count > 1 else ''}): "
         f"{module.TITLE}")
-    module.run(report, full=full, seeds=seeds, progress=say)
+    if len(variants) > 2:
+        module.run(report, full=full, seeds=seeds, progress=say, variant=variant)
+    else:
+        module.run(report, full=full, seeds=seeds, progress=say)
     seconds = time.perf_counter() - start
     paths = report.write(seconds=seconds)
     say(f"done in {seconds:.0f} s: {paths['report']}")

@@ -12,6 +12,12 @@ Side-by-side tables come in two shapes:
 * :meth:`Report.grid`: the paper's table layout (:class:`GridRow`: a label and one cell per
   column), each column split into the paper's figure as printed and ours.
 
+An experiment that runs its set-up under several conditions (``teo2010``: two on-board error
+models) shows them side by side: ``series=("realistic", "bias-drift")`` in
+:meth:`Report.compare` and :meth:`Report.grid` gives one column of ours per series (the
+first from ``Row.ours`` / ``GridRow.ours``, the others from their ``alt``), and a finding
+may carry one verdict per series (:attr:`Finding.series`).
+
 Our figures are :class:`Estimate` values: the per-seed values of a statistic, shown as their
 mean and 95 % Student-t interval of the mean over the seeds.
 """
@@ -20,7 +26,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -131,20 +137,28 @@ class Row:
     ours : Estimate or str or float
     verdict : str
         E.g. ``"reproduced"``, ``"not reproduced: ..."``, or empty.
+    alt : sequence of Estimate or str or float
+        Ours under the report's further series (:meth:`Report.compare` ``series``), in order.
     """
 
     quantity: str
     paper: str
     ours: Estimate | str | float
     verdict: str = ""
+    alt: Sequence[Estimate | str | float] = ()
 
     def cells(self, decimals: int) -> list[str]:
-        """The Markdown cells: quantity, paper, ours, verdict."""
-        return [self.quantity, self.paper, _ours(self.ours, decimals), self.verdict]
+        """The Markdown cells: quantity, paper, ours (then ``alt``), verdict."""
+        return ([self.quantity, self.paper, _ours(self.ours, decimals)]
+                + [_ours(v, decimals) for v in self.alt] + [self.verdict])
 
-    def to_json(self) -> dict[str, Any]:
-        return {"quantity": self.quantity, "paper": self.paper,
-                "geoblock": _ours_json(self.ours), "verdict": self.verdict}
+    def to_json(self, series: Sequence[str] = ()) -> dict[str, Any]:
+        out: dict[str, Any] = {"quantity": self.quantity, "paper": self.paper,
+                               "geoblock": _ours_json(self.ours), "verdict": self.verdict}
+        if series:
+            out["series"] = {name: _ours_json(v)
+                             for name, v in zip(series, (self.ours, *self.alt), strict=True)}
+        return out
 
 
 @dataclass(frozen=True)
@@ -159,15 +173,23 @@ class GridRow:
         The paper's figure in each column as printed (``"-"`` where it gives none).
     ours : sequence of Estimate or str or float
         Ours in each column.
+    alt : sequence of sequences
+        Ours in each column under the report's further series (:meth:`Report.grid`
+        ``series``), one sequence per series after the first.
     """
 
     label: str
     paper: Sequence[str]
     ours: Sequence[Estimate | str | float]
+    alt: Sequence[Sequence[Estimate | str | float]] = ()
 
-    def to_json(self) -> dict[str, Any]:
-        return {"label": self.label, "paper": list(self.paper),
-                "geoblock": [_ours_json(v) for v in self.ours]}
+    def to_json(self, series: Sequence[str] = ()) -> dict[str, Any]:
+        out: dict[str, Any] = {"label": self.label, "paper": list(self.paper),
+                               "geoblock": [_ours_json(v) for v in self.ours]}
+        if series:
+            out["series"] = {name: [_ours_json(v) for v in cells] for name, cells
+                             in zip(series, (self.ours, *self.alt), strict=True)}
+        return out
 
 
 @dataclass(frozen=True)
@@ -183,17 +205,24 @@ class Finding:
         None: partly, or not testable in this variant (say why in ``evidence``).
     evidence : str
         Our figures, and why when it did not reproduce.
+    series : mapping of str to bool or None
+        The verdict under each series of the experiment (e.g. on-board error model), when it
+        runs several; ``reproduced`` is then the first series' verdict.
     """
 
     key: str
     statement: str
     reproduced: bool | None
     evidence: str
+    series: Mapping[str, bool | None] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str:
         """``"reproduced"``, ``"NOT reproduced"`` or ``"partly"``."""
-        return {True: "reproduced", False: "NOT reproduced", None: "partly"}[self.reproduced]
+        return _VERDICTS[self.reproduced]
+
+
+_VERDICTS = {True: "reproduced", False: "NOT reproduced", None: "partly"}
 
 
 def _cell(text: Any) -> str:
@@ -208,11 +237,15 @@ class Report:
     Parameters
     ----------
     name, title, citation : str
-    variant : {"small", "full"}
+    variant : str
+        One of ``variants``.
     seeds : sequence of int
         At least one.
     outdir : pathlib.Path
         Where :meth:`figure` and :meth:`write` write.
+    variants : sequence of str
+        The experiment's variants (default ``("small", "full")``; the registry passes an
+        experiment's own, e.g. teo2010's ``case2``).
 
     Raises
     ------
@@ -230,11 +263,13 @@ class Report:
     findings: list[Finding] = field(default_factory=list)
     results: dict[str, Any] = field(default_factory=dict)
     figures: list[Path] = field(default_factory=list)
+    variants: Sequence[str] = ("small", "full")
 
     def __post_init__(self) -> None:
-        if self.variant not in ("small", "full"):
-            raise ExperimentError(f"experiment {self.name}: variant must be 'small' or 'full', "
-                                  f"got {self.variant!r}")
+        if self.variant not in self.variants:
+            raise ExperimentError(f"experiment {self.name}: variant must be one of "
+                                  f"{', '.join(repr(v) for v in self.variants)}, got "
+                                  f"{self.variant!r}")
         if not len(self.seeds):
             raise ExperimentError(f"experiment {self.name}: no seed to run")
         self.outdir = Path(self.outdir)
@@ -289,29 +324,49 @@ class Report:
                                  "rows": [[_jsonable(c) for c in row] for row in rows]}
 
     def compare(self, key: str, rows: Sequence[Row], *, title: str | None = None,
-                note: str = "", decimals: int = 2) -> None:
+                note: str = "", decimals: int = 2, series: Sequence[str] = ()) -> None:
         """A side-by-side table: quantity, the paper's figure, ours (mean and 95 % interval
         over the seeds), verdict; recorded under ``key`` in ``results.json``.
+
+        With ``series`` (two or more names), one column of ours per series: ``Row.ours`` the
+        first, ``Row.alt`` the others; ``results.json`` gets each row's ``series`` too.
 
         Raises
         ------
         ExperimentError
-            ``key`` used before.
+            ``key`` used before, or a row whose ``alt`` does not match ``series``.
         """
         self._key(key)
+        self._check_series(key, series, [(r.quantity, len(r.alt)) for r in rows])
         if title:
             self.blocks.append(f"**{title}**\n")
-        lines = ["| quantity | paper | " + self._ours_header() + " | verdict |",
-                 "|---|---:|---:|---|"]
+        ours = ([self._ours_header()] if not series else
+                [f"geoblock, {name}" for name in series])
+        lines = ["| quantity | paper | " + " | ".join(ours) + " | verdict |",
+                 "|---|---:|" + "---:|" * len(ours) + "---|"]
         lines += ["| " + " | ".join(_cell(c) for c in r.cells(decimals)) + " |" for r in rows]
         self.blocks.append("\n".join(lines) + "\n")
+        if series:
+            self.text(f"geoblock: mean and 95 % interval over {len(self.seeds)} "
+                      f"seed{'s' if len(self.seeds) > 1 else ''}, per series.")
         if note:
             self.text(note)
-        self.results[key] = [r.to_json() for r in rows]
+        self.results[key] = [r.to_json(series) for r in rows]
+
+    def _check_series(self, key: str, series: Sequence[str],
+                      rows: Sequence[tuple[str, int]]) -> None:
+        if len(series) == 1:
+            raise ExperimentError(f"experiment {self.name}: {key!r}: give two or more series "
+                                  f"or none, got {list(series)}")
+        want = max(len(series) - 1, 0)
+        for label, alt in rows:
+            if alt != want:
+                raise ExperimentError(f"experiment {self.name}: {key!r}: row {label!r} has "
+                                      f"{alt} further series for {want} ({list(series)})")
 
     def grid(self, key: str, columns: Sequence[str], rows: Sequence[GridRow], *,
              title: str | None = None, note: str = "", decimals: int = 2,
-             label: str = "") -> None:
+             label: str = "", series: Sequence[str] = ()) -> None:
         """A side-by-side table in the paper's layout: per column, the paper's figure as
         printed beside ours (mean and 95 % interval over the seeds, without units: give them
         in ``title``); recorded under ``key``.
@@ -328,51 +383,72 @@ class Report:
         decimals : int
         label : str
             Heading of the label column.
+        series : sequence of str
+            Two or more names: each column shows the paper's figure then ours per series
+            (``GridRow.ours`` the first, ``GridRow.alt`` the others).
 
         Raises
         ------
         ExperimentError
-            A row whose ``paper`` or ``ours`` has another length than ``columns``, or ``key``
-            used before.
+            A row whose ``paper``, ``ours`` or an ``alt`` has another length than
+            ``columns``, ``alt`` not matching ``series``, or ``key`` used before.
         """
         self._key(key)
+        self._check_series(key, series, [(r.label, len(r.alt)) for r in rows])
         for r in rows:
-            if len(r.paper) != len(columns) or len(r.ours) != len(columns):
+            if len(r.paper) != len(columns) or any(
+                    len(o) != len(columns) for o in (r.ours, *r.alt)):
                 raise ExperimentError(
                     f"experiment {self.name}: grid {key!r}: row {r.label!r} has "
                     f"{len(r.paper)} paper and {len(r.ours)} geoblock cells for "
                     f"{len(columns)} columns")
         if title:
             self.blocks.append(f"**{title}**\n")
-        header = [label] + [f"{c}: {who}" for c in columns for who in ("paper", "geoblock")]
+        who = ["paper"] + ([f"geoblock {name}" for name in series] or ["geoblock"])
+        header = [label] + [f"{c}: {w}" for c in columns for w in who]
         lines = ["| " + " | ".join(_cell(h) for h in header) + " |",
-                 "|---|" + "---:|" * (2 * len(columns))]
+                 "|---|" + "---:|" * (len(who) * len(columns))]
         for r in rows:
             cells = [r.label]
-            for paper, ours in zip(r.paper, r.ours, strict=True):
-                cells += [paper, _ours(ours, decimals, unit=False)]
+            for k, paper in enumerate(r.paper):
+                cells += [paper] + [_ours(o[k], decimals, unit=False) for o in (r.ours, *r.alt)]
             lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
         self.blocks.append("\n".join(lines) + "\n")
         if note:
             self.text(note)
-        self.results[key] = {"columns": list(columns), "rows": [r.to_json() for r in rows]}
+        self.results[key] = {"columns": list(columns), "series": list(series),
+                             "rows": [r.to_json(series) for r in rows]}
 
     def _ours_header(self) -> str:
         n = len(self.seeds)
         return f"geoblock (mean, 95 % CI over {n} seed{'s' if n > 1 else ''})"
 
     def finding(self, key: str, statement: str, reproduced: bool | None,
-                evidence: str) -> Finding:
+                evidence: str, *, series: Mapping[str, bool | None] | None = None) -> Finding:
         """Record a paper's finding and whether it reproduced (listed first in the report).
+
+        ``series``: the verdict per series (two or more; the first must be ``reproduced``):
+        the findings table then has one verdict column per series.
 
         Raises
         ------
         ExperimentError
-            ``key`` used by another finding.
+            ``key`` used by another finding, or ``series`` inconsistent with the other
+            findings' or with ``reproduced``.
         """
         if any(f.key == key for f in self.findings):
             raise ExperimentError(f"experiment {self.name}: finding {key!r} recorded twice")
-        found = Finding(key, statement, reproduced, evidence)
+        series = dict(series or {})
+        names = list(series)
+        if names and (len(names) < 2 or series[names[0]] is not reproduced):
+            raise ExperimentError(f"experiment {self.name}: finding {key!r}: series {series} "
+                                  f"must name two or more and start with the verdict "
+                                  f"{reproduced}")
+        if self.findings and list(self.findings[0].series) != names:
+            raise ExperimentError(f"experiment {self.name}: finding {key!r}: series "
+                                  f"{names} differ from the other findings' "
+                                  f"{list(self.findings[0].series)}")
+        found = Finding(key, statement, reproduced, evidence, series)
         self.findings.append(found)
         return found
 
@@ -418,9 +494,17 @@ class Report:
                 "intervals of the mean over the seeds."
                 + (f" Run time: {seconds:.0f} s." if seconds is not None else "") + "\n"]
         if self.findings:
-            lines = ["| finding (paper) | here | evidence |", "|---|---|---|"]
-            lines += [f"| {_cell(f.statement)} | {f.verdict} | {_cell(f.evidence)} |"
-                      for f in self.findings]
+            names = list(self.findings[0].series)
+            if names:
+                lines = ["| finding (paper) | " + " | ".join(f"here, {n}" for n in names)
+                         + " | evidence |", "|---|" + "---|" * len(names) + "---|"]
+                lines += [f"| {_cell(f.statement)} | "
+                          + " | ".join(_VERDICTS[f.series[n]] for n in names)
+                          + f" | {_cell(f.evidence)} |" for f in self.findings]
+            else:
+                lines = ["| finding (paper) | here | evidence |", "|---|---|---|"]
+                lines += [f"| {_cell(f.statement)} | {f.verdict} | {_cell(f.evidence)} |"
+                          for f in self.findings]
             head += ["## Findings\n", "\n".join(lines) + "\n"]
         return "\n".join(head + self.blocks)
 
@@ -444,7 +528,8 @@ class Report:
                 "variant": self.variant, "seeds": list(self.seeds),
                 "seconds": _num(seconds) if seconds is not None else None,
                 "findings": [{"key": f.key, "statement": f.statement,
-                              "reproduced": f.reproduced, "evidence": f.evidence}
+                              "reproduced": f.reproduced, "evidence": f.evidence,
+                              **({"series": dict(f.series)} if f.series else {})}
                              for f in self.findings],
                 "results": self.results,
                 "figures": [p.name for p in self.figures]}
