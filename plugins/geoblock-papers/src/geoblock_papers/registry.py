@@ -76,13 +76,16 @@ EXPERIMENTS: dict[str, _Entry] = {
                       "Teo et al. 2010: MBA, DG and RFM, single vs block, on three SPOT-5 "
                       "strips; DEM control, collocation; realistic and bias-drift on-board "
                       "errors side by side",
-                      {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"},
+                      {"small": "~75 s CPU, 100 s at load 4 (both error models)",
+                       "full": "~6 min (10 seeds, both error models, 1.2 GB)",
+                       "case2": "~55 s CPU, 85 s at load 4"},
                       {"case2": "case II: two scenes per strip (Tables IV, VII, VIII), "
                                 "small images",
                        "case2-full": "case II at the papers' image sizes"}),
     "chen2008": _Entry("geoblock_papers.chen2008",
                        "Chen, Teo & Lo 2008: the conference version's tables (the teo2010 "
-                       "block)", {"small": "~25 s", "full": "~3 min (10 seeds, 1.2 GB)"}),
+                       "block)", {"small": "~75 s CPU, 100 s at load 4 (both error models)",
+                                  "full": "~6 min (10 seeds, both error models, 1.2 GB)"}),
     "chen1993": _Entry("geoblock_papers.chen1993",
                        "Chen & Lee 1993: SPOT resection residuals, check points, orthoimage "
                        "RMSE over rolling and rugged terrain",
