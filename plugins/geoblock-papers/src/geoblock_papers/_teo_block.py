@@ -512,8 +512,7 @@ def _nonaffine_2d(sim: SimulatedSensor) -> float:
 
 def _compute_outcome(seed: int, variant: str, errors: str) -> SeedOutcome:
     clock = time.perf_counter()
-    tb = simulate_block(seed, variant, errors if errors != "bias-drift"
-                        or len(available_error_models()) > 1 else None)
+    tb = simulate_block(seed, variant, errors)
     seconds = {"simulate": time.perf_counter() - clock}
     values: dict[str, float] = {}
     meas, pts = tb.measurements, tb.points

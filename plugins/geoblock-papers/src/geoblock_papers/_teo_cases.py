@@ -98,6 +98,11 @@ def scenario_dict(seed: int, variant: str = "small",
     :data:`VARIANTS` with ``seed``, its case's strips and point counts (:data:`CASES`) and,
     unless None, the on-board error model ``errors`` of every strip."""
     case = case_of(variant)
+    if errors is not None and errors not in available_error_models():
+        raise ExperimentError(f"teo block: on-board error model {errors!r} is not one of the "
+                              f"simulator's: {', '.join(available_error_models())}")
+    if len(available_error_models()) == 1:
+        errors = None  # a simulator without the key: its only model
     data = preset_dict("teo2010-spot5", "full" if is_full(variant) else "small")
     data["seed"] = int(seed)
     data["points"].update(gcp=case.gcp_candidates, icp=case.icp, tp=list(case.tp),
