@@ -380,13 +380,33 @@ def test_case2_doubles_the_strips_and_takes_the_papers_counts():
     assert full.images[0].spec.shape == (48000, 24000)
 
 
+@needs_both
+def test_the_sensitivity_model_is_realistic_with_the_spot1_4_wander():
+    from geoblock.simulate.onboard import WANDER_SPOT1_4, WANDER_SPOT5
+    from geoblock.simulate.scenario import scenario_from_dict
+
+    got = scenario_from_dict(tb.scenario_dict(0, "small", "realistic-spot1-4"))
+    default = scenario_from_dict(tb.scenario_dict(0, "small", "realistic"))
+    for a, b in zip(got.images, default.images, strict=True):
+        assert a.spec.onboard_errors == b.spec.onboard_errors == "realistic"
+        assert a.spec.wander_rms_rad == WANDER_SPOT1_4.rms_rad
+        assert b.spec.wander_rms_rad == WANDER_SPOT5.rms_rad
+        assert a.spec.seed == b.spec.seed
+    assert "realistic-spot1-4" not in tb.available_error_models()  # never run by the command
+    from geoblock_papers.registry import ExperimentError
+
+    with pytest.raises(ExperimentError, match="'spot9' is not one of realistic, bias-drift"):
+        tb.scenario_dict(0, "small", "spot9")
+
+
 def test_case2_report_has_tables_iv_vii_viii(tmp_path, monkeypatch):
     """Case II end to end with one seed, under the bias-drift model alone (the report of a
     simulator without realistic errors: one column of ours)."""
     from geoblock_papers import _teo_block
     from geoblock_papers.registry import run_experiment
 
-    monkeypatch.setattr(_teo_block, "available_error_models", lambda: ("bias-drift",))
+    monkeypatch.setattr(_teo_block, "available_error_models",
+                        lambda sensitivity=False: ("bias-drift",))
     result = run_experiment("teo2010", tmp_path / "case2", variant="case2", repeats=1)
     md = result.report.read_text()
     data = json.loads(result.results.read_text())

@@ -81,6 +81,7 @@ from geoblock.simulate.terrain import Grid, measured_dem
 from geoblock_papers._teo_cases import (
     CASES,
     ERROR_MODELS,
+    SENSITIVITY_MODELS,
     VARIANTS,
     Case,
     available_error_models,
@@ -94,6 +95,7 @@ __all__ = [
     "CACHE_SIZE",
     "CASES",
     "ERROR_MODELS",
+    "SENSITIVITY_MODELS",
     "METHODS",
     "PAIRS",
     "POOR_DEM_RMSE_M",
@@ -479,7 +481,8 @@ def seed_outcome(seed: int, variant: str = "small",
     variant : str
         A key of :data:`VARIANTS`.
     errors : str
-        One of :func:`available_error_models`.
+        One of :func:`available_error_models` (``sensitivity=True``: also
+        :data:`~geoblock_papers._teo_cases.SENSITIVITY_MODELS`).
 
     Raises
     ------
@@ -489,9 +492,9 @@ def seed_outcome(seed: int, variant: str = "small",
         The simulation or an adjustment failed (the message says which).
     """
     case_of(variant)
-    if errors not in available_error_models():
+    if errors not in available_error_models(sensitivity=True):
         raise ExperimentError(f"teo block: on-board error model {errors!r} is not one of the "
-                              f"simulator's: {', '.join(available_error_models())}")
+                              f"simulator's: {', '.join(available_error_models(True))}")
     key = (int(seed), str(variant), str(errors))
     if key not in _CACHE:
         _CACHE[key] = _compute_outcome(*key)

@@ -17,19 +17,28 @@ from geoblock.simulate.scenario import preset_dict
 from geoblock.simulate.sensors import OrbitSensorSpec
 from geoblock_papers.registry import ExperimentError, is_full
 
-__all__ = ["CASES", "ERROR_MODELS", "VARIANTS", "Case", "available_error_models", "case_of",
-           "scenario_dict"]
+__all__ = ["CASES", "ERROR_MODELS", "SENSITIVITY_MODELS", "VARIANTS", "Case",
+           "available_error_models", "case_of", "scenario_dict"]
 
 #: The simulator's on-board error models, the default first
 #: (:attr:`geoblock.simulate.sensors.OrbitSensorSpec.onboard_errors`)
 ERROR_MODELS = ("realistic", "bias-drift")
 
 
-def available_error_models() -> tuple[str, ...]:
-    """:data:`ERROR_MODELS`, or only ``("bias-drift",)`` with a simulator that has no
-    ``onboard_errors`` (its only model: biases and drifts)."""
+#: Error models for sensitivity studies from Python (:func:`geoblock_papers._teo_block.study`
+#: ``models=``; never run by the command): ``"realistic-spot1-4"`` is ``"realistic"`` with the
+#: attitude wander measured on the SPOT 1-4 records
+#: (:data:`geoblock.simulate.onboard.WANDER_SPOT1_4`, 7.8 times SPOT-5's in pitch) instead of
+#: SPOT-5's: local systematic errors of metres, where collocation has something to remove.
+SENSITIVITY_MODELS = ("realistic-spot1-4",)
+
+
+def available_error_models(sensitivity: bool = False) -> tuple[str, ...]:
+    """:data:`ERROR_MODELS` (and with ``sensitivity`` :data:`SENSITIVITY_MODELS`), or only
+    ``("bias-drift",)`` with a simulator that has no ``onboard_errors`` (its only model:
+    biases and drifts)."""
     if "onboard_errors" in {f.name for f in dataclasses.fields(OrbitSensorSpec)}:
-        return ERROR_MODELS
+        return ERROR_MODELS + (SENSITIVITY_MODELS if sensitivity else ())
     return ("bias-drift",)
 
 
@@ -98,11 +107,20 @@ def scenario_dict(seed: int, variant: str = "small",
     :data:`VARIANTS` with ``seed``, its case's strips and point counts (:data:`CASES`) and,
     unless None, the on-board error model ``errors`` of every strip."""
     case = case_of(variant)
-    if errors is not None and errors not in available_error_models():
-        raise ExperimentError(f"teo block: on-board error model {errors!r} is not one of the "
-                              f"simulator's: {', '.join(available_error_models())}")
-    if len(available_error_models()) == 1:
+    known = available_error_models(sensitivity=True)
+    if errors is not None and errors not in known:
+        raise ExperimentError(f"teo block: on-board error model {errors!r} is not one of "
+                              f"{', '.join(known)}")
+    if len(known) == 1:
         errors = None  # a simulator without the key: its only model
+    wander: dict[str, Any] = {}
+    if errors == "realistic-spot1-4":
+        from geoblock.simulate.onboard import WANDER_SPOT1_4
+
+        errors = "realistic"
+        wander = {"wander_rms_rad": list(WANDER_SPOT1_4.rms_rad),
+                  "wander_slope": WANDER_SPOT1_4.slope,
+                  "wander_band_hz": list(WANDER_SPOT1_4.band_hz)}
     data = preset_dict("teo2010-spot5", "full" if is_full(variant) else "small")
     data["seed"] = int(seed)
     data["points"].update(gcp=case.gcp_candidates, icp=case.icp, tp=list(case.tp),
@@ -114,6 +132,7 @@ def scenario_dict(seed: int, variant: str = "small",
         image["onboard_rmse_m"] = rmse
         if errors is not None:
             image["onboard_errors"] = errors
+        image.update(wander)
     data["description"] += (f"; case {case.name}; {case.gcp_candidates} GCP candidates per "
                             f"strip of which the {'/'.join(map(str, case.gcps))} nearest the "
                             "centre column are kept")

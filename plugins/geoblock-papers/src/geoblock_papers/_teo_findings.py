@@ -137,6 +137,10 @@ def _error_model_note(study: Study, data: Outcomes, model: str) -> str:
     mine = _nonaffine(data)
     others = [(m, _nonaffine(d)) for m, d in study.by_model.items() if m != model]
     versus = "".join(f", {m} {v:.2f} m" for m, v in others)
+    if model.startswith("realistic-"):
+        return (f"the realistic components with a larger attitude wander ({model}) leave "
+                f"{mine:.2f} m RMS of on-board error that no affine function of row and column "
+                f"removes (mean over strips and seeds{versus})")
     if model == "realistic":
         return (f"the realistic components (an attitude wander and a look-angle error of the "
                 f"sizes measured on SPOT5.DIM, an orbital-period ephemeris error of SPOT-5's "
