@@ -29,8 +29,8 @@ spectrum (:data:`DESIGN`: SPOT 1-4's, :data:`geoblock.simulate.onboard.WANDER_SP
 default: SPOT-5's own, 0.43 urad RMS in pitch, moves the ground by 0.36 m, below the preset's
 1.25 m pointing noise, and there is then nothing to recover).
 
-Run it with ``python -m geoblock_papers.jitter OUTDIR [--seeds N] [--full]`` (or, once
-registered, ``geoblock experiment jitter OUTDIR``).
+Run it with ``geoblock experiment jitter [OUTDIR]`` (or ``python -m geoblock_papers.jitter
+OUTDIR [--seeds N] [--full]``).
 """
 
 from __future__ import annotations
