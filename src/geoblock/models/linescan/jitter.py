@@ -59,7 +59,7 @@ from geoblock.typing import ArrayLike, Float64Array, IndexArray
 
 if TYPE_CHECKING:
     from geoblock.models.curves import CorrectionCurve
-    from geoblock.models.linescan.model import LinescanModel
+    from geoblock.models.linescan._protocol import Linescan as LinescanModel
 
 __all__ = [
     "ATTITUDE_SPLINE_AXES",

@@ -13,7 +13,7 @@ from geoblock.errors import ParameterSetError
 from geoblock.models.parameters import ParameterSet, location_accuracy
 
 if TYPE_CHECKING:
-    from geoblock.models.linescan.model import LinescanModel
+    from geoblock.models.linescan._protocol import Linescan as LinescanModel
 
 __all__ = [
     "DG_ADJUSTABLE",
