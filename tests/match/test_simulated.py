@@ -31,14 +31,18 @@ def test_kept_matches_are_within_a_pixel_of_the_truth(triplet, matched):
     tps, messages = matched
     for a, b in PAIRS:
         err = truth.errors(tps, a, b)
-        assert err.size >= 150, (a, b, err.size)
+        # kept per pair: 153-230 with bias-drift on-board errors, 138-199 with the realistic
+        # ones of issue 27 (a measured attitude wander and a look-angle error in the true
+        # models the images are rendered with: other images, 365-542 candidates instead of
+        # 405-506, the same share of rejections)
+        assert err.size >= 130, (a, b, err.size)
         within = float(np.mean(err < 1.0))
         assert within >= 0.95, (a, b, within, np.percentile(err, [50, 90, 99]))
         assert np.median(err) < 0.35, (a, b, np.median(err))
     # every pair found the models' disagreement (8-25 px) and said so
     assert sum("models' offset" in m for m in messages) >= 3
     for pair in tps.pairs:
-        assert pair.counts()["kept"] >= 150
+        assert pair.counts()["kept"] >= 130
         # the offset said is the on-board models' true disagreement where the pair matched:
         # the truth's position in B minus the on-board prediction, averaged over the matches
         keep = pair.kept
