@@ -158,7 +158,10 @@ def adjust(
         Iteration cap of Gauss-Newton (robust re-weighting adds up to 20).
     tolerance : float
         Converged when every step is below ``tolerance`` a-priori standard deviations of
-        its unknown (dimensionless), or the cost no longer decreases.
+        its unknown (dimensionless), or the cost no longer decreases, or the cost changes by
+        less than :data:`~geoblock.adjust.problem.CREEP_COST_TOLERANCE` of itself and the
+        step is below ``tolerance`` in the undamped normal matrix's metric (no unknown then
+        moves by more than ``tolerance`` of its posterior sigma).
     progress : callable, optional
         Called with one line per iteration.
 

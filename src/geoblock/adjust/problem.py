@@ -36,6 +36,11 @@ TP_PRIORS = ("floating", "fixed")
 MIN_GROUND_SIGMA_M = 1e-3
 #: converged also when the cost changes by less than this fraction in an iteration
 COST_TOLERANCE = 1e-10
+#: converged also when an iteration changes the cost by less than this fraction AND its step,
+#: measured in the undamped normal matrix's metric, is below ``tolerance`` (so no unknown
+#: moved by more than ``tolerance`` of its posterior sigma): ends the creep of damped steps
+#: along a nearly undetermined combination of unknowns
+CREEP_COST_TOLERANCE = 1e-8
 #: sigma (metres) of the floating TP pseudo-observations after the first iteration: they only
 #: keep a point regular where nothing else determines it (parallel rays without a DEM)
 FLOATING_TP_SIGMA_M = 1e4
