@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from geoblock.adjust import Block, GroundPoints, ImagePoints, adjust
-from geoblock.models.linescan import Attitude, LinescanModel, rotation_xyz
+from geoblock.models.linescan import LinescanModel
 from geoblock.models.linescan.jitter import attitude_correction
-from geoblock.models.linescan.rotations import matrix_to_quaternion
+from geoblock.testing.synthetic import with_attitude_offsets
 
 ROWS, COLS = 3000, 1000
 #: the injected wander: (axis, amplitude rad, frequency Hz, phase rad); 2-3 cycles per
@@ -28,12 +28,7 @@ def wander(t: np.ndarray) -> np.ndarray:
 
 def with_wander(model: LinescanModel) -> LinescanModel:
     """The model whose attitude record (resampled every 2 ms) carries the wander."""
-    lo, hi = model.attitude.valid_span_s
-    t = np.arange(lo, hi, 0.002)
-    w = wander(t)
-    rot = model.attitude.matrix(t) @ rotation_xyz(w[:, 0], w[:, 1], w[:, 2])
-    return model.replace(attitude=Attitude(t, matrix_to_quaternion(rot),
-                                           frame=model.attitude.frame))
+    return with_attitude_offsets(model, wander)
 
 
 def build(seed: int = 4):

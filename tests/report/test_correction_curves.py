@@ -10,10 +10,10 @@ import pytest
 from geoblock.adjust import Block, GroundPoints, ImagePoints, adjust
 from geoblock.models import CorrectionCurve, CroppedModel, HasCorrectionCurves, ImageCorrection
 from geoblock.models.curves import detrend
-from geoblock.models.linescan import Attitude, LinescanModel, attitude_correction, rotation_xyz
-from geoblock.models.linescan.rotations import matrix_to_quaternion
+from geoblock.models.linescan import LinescanModel, attitude_correction
 from geoblock.report import correction_curves, correction_figure, write_result
 from geoblock.testing.blocks import affine_block
+from geoblock.testing.synthetic import with_attitude_offsets
 
 ROWS, COLS = 900, 300
 NOISE_PX = 0.05
@@ -27,12 +27,7 @@ def wander(t: np.ndarray) -> np.ndarray:
 
 
 def _true(model: LinescanModel) -> LinescanModel:
-    lo, hi = model.attitude.valid_span_s
-    t = np.arange(lo, hi, 0.002)
-    w = wander(t)
-    rot = model.attitude.matrix(t) @ rotation_xyz(w[:, 0], w[:, 1], w[:, 2])
-    return model.replace(attitude=Attitude(t, matrix_to_quaternion(rot),
-                                           frame=model.attitude.frame))
+    return with_attitude_offsets(model, wander)
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ import pytest
 from geoblock_papers import jitter
 from geoblock_papers.report import Report
 
-from geoblock.models.linescan import LinescanModel, rotation_xyz
+from geoblock.models.linescan import LinescanModel
 
 #: a lighter design than the study's (fewer points): seconds
 DESIGN = replace(jitter.DESIGN, icp=20, tp=100)
@@ -28,14 +28,12 @@ def test_true_correction_reads_back_an_injected_rotation():
     model = LinescanModel.example((200, 100))
     t = np.linspace(-0.3, 0.3, 7)
     angles = np.stack([2e-6 * np.sin(t), -3e-6 * np.cos(t), 1e-6 * t], axis=-1)
-    from geoblock.models.linescan import Attitude
-    from geoblock.models.linescan.rotations import matrix_to_quaternion
+    from geoblock.testing.synthetic import with_attitude_offsets
 
-    ts = np.linspace(*model.attitude.valid_span_s, 2001)
-    a = np.stack([2e-6 * np.sin(ts), -3e-6 * np.cos(ts), 1e-6 * ts], axis=-1)
-    rot = model.attitude.matrix(ts) @ rotation_xyz(a[:, 0], a[:, 1], a[:, 2])
-    true = model.replace(attitude=Attitude(ts, matrix_to_quaternion(rot),
-                                           frame=model.attitude.frame))
+    span = np.diff(model.attitude.valid_span_s).item()
+    true = with_attitude_offsets(
+        model, lambda ts: np.stack([2e-6 * np.sin(ts), -3e-6 * np.cos(ts), 1e-6 * ts], axis=-1),
+        step_s=span / 2000)
     np.testing.assert_allclose(jitter.true_correction(model, true, t), angles, atol=2e-9)
 
 

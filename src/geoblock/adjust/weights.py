@@ -3,7 +3,7 @@ parameters and ground points, and the diagnosis of undetermined unknowns."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -203,16 +203,27 @@ def parameter_prior(model: SensorModel, overrides: Mapping[str, float]
     if information is not None:
         return _information_prior(params, information, mask, overrides)
     cov = np.array(params.prior_covariance, dtype=np.float64)
+    _override(params, mask, cov, overrides, lambda sigma: float(sigma) ** 2)
+    return mask, cov
+
+
+def _override(params: ParameterSet, mask: BoolArray, matrix: Float64Array,
+              overrides: Mapping[str, float], diagonal: Callable[[float], float]) -> bool:
+    """Apply sigma overrides in place: 0 fixes the parameter (``mask``); any other sigma
+    makes it adjustable, uncorrelated, with ``diagonal(sigma)`` its entry of ``matrix`` (a
+    covariance or an information). Whether any entry of ``matrix`` changed."""
+    changed = False
     for name, sigma in overrides.items():
         k = params.index(name)
         if sigma == 0:
             mask[k] = False
             continue
-        cov[k, :] = 0.0
-        cov[:, k] = 0.0
-        cov[k, k] = float(sigma) ** 2
+        matrix[k, :] = 0.0
+        matrix[:, k] = 0.0
+        matrix[k, k] = diagonal(sigma)
         mask[k] = True
-    return mask, cov
+        changed = True
+    return changed
 
 
 def _information_prior(params: ParameterSet, information: Float64Array, mask: BoolArray,
@@ -221,17 +232,8 @@ def _information_prior(params: ParameterSet, information: Float64Array, mask: Bo
     from geoblock.models.parameters import covariance_from_information
 
     info = np.array(information, dtype=np.float64)
-    changed = False
-    for name, sigma in overrides.items():
-        k = params.index(name)
-        if sigma == 0:
-            mask[k] = False
-            continue
-        info[k, :] = 0.0
-        info[:, k] = 0.0
-        info[k, k] = 0.0 if np.isinf(sigma) else 1.0 / float(sigma) ** 2
-        mask[k] = True
-        changed = True
+    changed = _override(params, mask, info, overrides,
+                        lambda sigma: 0.0 if np.isinf(sigma) else 1.0 / float(sigma) ** 2)
     cov = (covariance_from_information(info, params.names) if changed
            else np.array(params.prior_covariance, dtype=np.float64))
     adj = np.flatnonzero(mask)

@@ -9,6 +9,9 @@ they exercise the two ways of writing a model on :class:`~geoblock.models.Sensor
   one exposure per row, a satellite moving at constant velocity, a linear CCD) with numeric
   partials; its projection comes from the base class's Newton inversion.
 
+:func:`with_attitude_offsets` puts a known attitude error (a wander the on-board attitude
+lacks) into a :class:`~geoblock.models.linescan.LinescanModel`: the truth of a jitter test.
+
 They build, project, pickle and round-trip ``to_dict``/``from_dict`` on their own. They are
 test models, so geoblock's built-in plugin does not register them (``synthetic-affine``,
 ``synthetic-pushbroom``): :func:`geoblock.testing.enable_synthetic_models` (or
@@ -18,8 +21,8 @@ test models, so geoblock's built-in plugin does not register them (``synthetic-a
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any, ClassVar, Self
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
@@ -28,7 +31,10 @@ from geoblock.models.base import KernelResult, SensorModelBase
 from geoblock.models.parameters import ParameterSet
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["AffineCamera", "ConstantVelocityPushbroom"]
+if TYPE_CHECKING:
+    from geoblock.models.linescan import LinescanModel
+
+__all__ = ["AffineCamera", "ConstantVelocityPushbroom", "with_attitude_offsets"]
 
 
 class AffineCamera(SensorModelBase):
@@ -284,3 +290,39 @@ class ConstantVelocityPushbroom(SensorModelBase):
         lon, lat, _, status = coords.intersect_height(
             o, d, h, self.intersection_tolerance_m, self.intersection_max_iterations)
         return lon, lat, status
+
+
+def with_attitude_offsets(model: LinescanModel,
+                          angles: Callable[[Float64Array], ArrayLike], *,
+                          step_s: float = 0.002) -> LinescanModel:
+    """``model`` whose attitude carries extra roll, pitch, yaw offsets ``angles(t)``.
+
+    Parameters
+    ----------
+    model : LinescanModel
+    angles : callable
+        ``angles(time_s) -> (T, 3)`` roll, pitch, yaw, radians, right-multiplied to the
+        attitude as the model's own attitude parameters are (``R(t) Rx Ry Rz``); ``time_s``
+        (T,) seconds since the model's epoch.
+    step_s : float
+        Sampling of the new attitude record over the old one's valid span, seconds (fine
+        enough for the offsets' highest frequency: the record is interpolated between
+        samples).
+
+    Returns
+    -------
+    LinescanModel
+        The same model (frame, parameters, geometry) with the resampled attitude.
+    """
+    from geoblock.models.linescan import (
+        Attitude,
+        matrix_to_quaternion,
+        rotation_xyz,
+    )
+
+    lo, hi = model.attitude.valid_span_s
+    t = np.arange(lo, hi, float(step_s))
+    a = np.asarray(angles(t), dtype=np.float64)
+    rot = model.attitude.matrix(t) @ rotation_xyz(a[:, 0], a[:, 1], a[:, 2])
+    return model.replace(attitude=Attitude(t, matrix_to_quaternion(rot),
+                                           frame=model.attitude.frame))
