@@ -267,6 +267,8 @@ def test_other_sets_keep_the_spline():
     ({"base": "mba"}, "base must be one of"),
     ({"knot_lines": 0.5}, "knot_lines must be >= 1"),
     ({"knot_lines": -3}, "knot_lines must be finite and > 0"),
+    ({"knot_lines": True}, "knot_lines must be finite and > 0"),
+    ({"sigma_rad": True}, "sigma_rad must be finite and > 0"),
     ({"sigma_rad": 0.0}, "sigma_rad must be finite and > 0"),
     ({"smoothness_rad": np.inf}, "smoothness_rad"),
     ({"position": "yes"}, "position must be True or False"),

@@ -280,7 +280,8 @@ def _second_difference(n: int) -> Float64Array:
 
 def _positive(value: Any, what: str) -> float:
     try:
-        out = float(value)
+        # a boolean is not a number here (``knot_lines = true`` in a block file was 1 line)
+        out = math.nan if isinstance(value, (bool, np.bool_)) else float(value)
     except (TypeError, ValueError):
         out = math.nan
     if not (np.isfinite(out) and out > 0):
