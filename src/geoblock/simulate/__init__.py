@@ -9,6 +9,8 @@ application. The modules:
 * :mod:`~geoblock.simulate.terrain`: true terrain (ridged, fractal) and measured DEMs;
 * :mod:`~geoblock.simulate.points`: GCPs, ICPs, TPs and ICTPs with their truth;
 * :mod:`~geoblock.simulate.render`: raw images rendered through a model;
+* :mod:`~geoblock.simulate.reference`: reference orthos rendered from the ground truth, with
+  a known misregistration;
 * :mod:`~geoblock.simulate.scenario` and :mod:`~geoblock.simulate.presets`: a whole block
   as one frozen value, read from TOML or taken from the papers' presets;
 * :mod:`~geoblock.simulate.scene`: a scenario's components built in memory;
