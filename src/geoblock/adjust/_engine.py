@@ -13,6 +13,11 @@ import numpy as np
 import scipy.stats
 
 from geoblock import coords
+from geoblock.adjust._control import (
+    padded_columns,
+    pseudo_measurements,
+    source_shifts,
+)
 from geoblock.adjust.normal import (
     NormalSystem,
     SingularPoints,
@@ -84,6 +89,9 @@ class _Setup:
     g_weight: Float64Array  # (J, 3, 3)
     dem_rows: BoolArray  # (J,) bool: TP under DEM control
     n_images: IndexArray  # (J,) images measuring the point
+    n_model_params: int = -1  # K of the models (n_params less the source shifts)
+    hcp_h: Float64Array | None = None  # (J,) observed height of the HCPs, NaN elsewhere
+    hcp_sigma: Float64Array | None = None  # (J,) their sigma_h, metres
 
 
 @dataclass
@@ -110,7 +118,8 @@ class _Evaluation:
     h: Float64Array
     dem: _DemRows
     pts: Float64Array  # (J, 3) local coordinates
-    cost_fixed: float  # parameter and DEM terms
+    cost_fixed: float  # parameter, DEM and HCP terms
+    offset: Float64Array | None = None  # (J, 3) the sources' shifts at each point, local
     cost: float = math.nan
 
 
@@ -205,7 +214,7 @@ class _Engine:
             prior_w[sl, sl] = prior_weight(priors[i][1][np.ix_(adj[i], adj[i])])
         prior_x = _params_vector(models, adj, gidx, k)
 
-        kinds = ("gcp", "tp") if use_tps else ("gcp",)
+        kinds = ("gcp", "tp", "hcp") if use_tps else ("gcp",)
         sel = np.flatnonzero(np.isin(meas.image, ids) & np.isin(meas.kind, kinds))
         # points in the solution
         p_id, point_of = np.unique(meas.id[sel], return_inverse=True)
@@ -229,10 +238,21 @@ class _Engine:
             sig[is_gcp] = np.maximum(
                 np.stack([ground.sigma_e[g], ground.sigma_n[g], ground.sigma_h[g]], -1),
                 MIN_GROUND_SIGMA_M)
-        is_tp = ~is_gcp
+        is_tp = ~is_gcp  # tie points and height control points (tie points with a height)
+        is_hcp = p_kind == "hcp"
+        hcp_h = hcp_sigma = None
+        if is_hcp.any():
+            assert ground is not None  # HCP kinds come from the ground points
+            hcp_h = np.where(is_hcp, ground.h[gk], np.nan)
+            hcp_sigma = np.where(is_hcp, ground.sigma_h[gk], np.nan)
         if is_tp.any():
+            at = None if hcp_h is None else hcp_h[is_tp]
             lon0[is_tp], lat0[is_tp], h0[is_tp] = self._initial_tps(
-                models, ids, meas, sel, point_of, np.flatnonzero(is_tp))
+                models, ids, meas, sel, point_of, np.flatnonzero(is_tp), at)
+            if hcp_h is not None:  # an HCP's lon/lat, when given, as its initial position
+                assert ground is not None
+                given = is_hcp & np.isfinite(ground.lon[gk]) & np.isfinite(ground.lat[gk])
+                lon0[given], lat0[given] = ground.lon[gk[given]], ground.lat[gk[given]]
             if tp_sigma_m is None:
                 base = (np.median(sig[is_gcp], axis=0) if is_gcp.any() else np.full(3, 3.0))
                 tp_sig = tp_sigma_factor * np.maximum(base, 1.0)
@@ -244,15 +264,31 @@ class _Engine:
         x0 = np.stack(frame.from_geodetic(lon0, lat0, h0), axis=-1)
         g_weight = np.asarray(np.linalg.inv(ground_covariance(lon0, lat0, sig, frame.rotation)),
                               dtype=np.float64)
-        dem_rows = is_tp & (self.dem_control != "none")
+        # DEM control holds the tie points, not the HCPs: their height is observed better
+        dem_rows = (p_kind == "tp") & (self.dem_control != "none")
+        self.shifts = source_shifts(ground, p_id, p_kind, lon0, lat0, h0, frame, k)
+        if self.shifts is not None:
+            k_all = k + self.shifts.count
+            w_all = np.zeros((k_all, k_all))
+            w_all[:k, :k] = prior_w
+            sig_shift = self.shifts.prior_sigma[self.shifts.index >= 0]
+            w_all[k:, k:] = np.diag(1.0 / np.maximum(sig_shift, MIN_GROUND_SIGMA_M) ** 2)
+            prior_w, prior_x = w_all, np.concatenate([prior_x, np.zeros(k_all - k)])
         self.s = _Setup(
             ids=ids, models=models, adj=adj, gidx=gidx, n_params=k, prior_x=prior_x,
             prior_w=prior_w, m_sel=sel, image_of=image_of, point_of=point_of,
             obs=np.stack([meas.row[sel], meas.col[sel]], -1),
             sigma=np.stack([meas.sigma_row[sel], meas.sigma_col[sel]], -1),
             p_id=p_id, p_kind=p_kind, frame=frame, x0=x0, g_center=x0.copy(),
-            g_weight=g_weight, dem_rows=dem_rows, n_images=n_images,
+            g_weight=g_weight, dem_rows=dem_rows, n_images=n_images, n_model_params=k,
+            hcp_h=hcp_h, hcp_sigma=hcp_sigma,
         )
+        if self.shifts is not None:
+            self.s.n_params = prior_x.size
+            # the shifted points' ground rows are pseudo-measurements of (point, shift)
+            self.g_chol_t = np.swapaxes(np.linalg.cholesky(g_weight), 1, 2)
+            self.pseudo_point = np.repeat(np.flatnonzero(self.shifts.shifted), 2)
+            point_of = np.concatenate([point_of, self.pseudo_point])
         self.pairs = measurement_pairs(point_of, p_id.size)
         self.weight = np.ones(sel.size)  # robust weight factors
 
@@ -294,9 +330,11 @@ class _Engine:
 
     def _initial_tps(self, models: list[SensorModel], ids: tuple[str, ...], meas: ImagePoints,
                      sel: IndexArray, point_of: IndexArray, tp_points: IndexArray,
+                     heights: Float64Array | None = None,
                      ) -> tuple[Float64Array, Float64Array, Float64Array]:
         """Initial TP positions: each ray localised on the DEM (or at the GCPs' mean
-        height), averaged in ECEF; then put on the DEM."""
+        height), averaged in ECEF; then put on the DEM. Points with a finite ``heights``
+        (per ``tp_points``: the HCPs) are located at that height instead."""
         from geoblock.dem.intersect import localize
 
         block = self.block
@@ -317,6 +355,16 @@ class _Engine:
                 g, _ = models[i].backproject_with_status(rows, cols,
                                                          np.full(rows.shape, h_guess))
             xyz[mine] = np.stack(coords.geodetic_to_ecef(*g), axis=-1)
+        if heights is not None:
+            at = np.full(point_of.max() + 1, np.nan)
+            at[tp_points] = heights
+            h_ray = at[point_of[want]]
+            for i, image in enumerate(ids):
+                mine = (meas.image[m_idx] == image) & np.isfinite(h_ray)
+                if mine.any():
+                    g, _ = models[i].backproject_with_status(
+                        meas.row[m_idx][mine], meas.col[m_idx][mine], h_ray[mine])
+                    xyz[mine] = np.stack(coords.geodetic_to_ecef(*g), axis=-1)
         pts = point_of[want]
         sums = np.zeros((point_of.max() + 1, 3))
         cnt = np.zeros(point_of.max() + 1)
@@ -335,6 +383,8 @@ class _Engine:
         if block.dem is not None:
             hd = _dem_height(block.dem, lon, lat)
             h = np.where(np.isfinite(hd), hd, h)
+        if heights is not None:
+            h = np.where(np.isfinite(heights), heights, h)
         return lon, lat, h
 
     # ------------------------------------------------------------------ evaluation
@@ -358,10 +408,13 @@ class _Engine:
         ok = status == Status.CONVERGED
         vw = np.where(ok[:, None], v / s.sigma, 0.0)
         dp = x - s.prior_x
+        offset = None if self.shifts is None else self.shifts.offsets(x)
         dem = self._dem_rows(lon, lat, h, pts)
+        if s.hcp_h is not None:
+            self._hcp_rows(dem, lon, lat, h, offset)
         ev = _Evaluation(models=models, v=v, vw=vw, status=status, ok=ok, lon=lon, lat=lat, h=h,
                          dem=dem, pts=pts, cost_fixed=float(dp @ s.prior_w @ dp)
-                         + float(np.nansum((dem.misclosure / dem.sigma) ** 2)))
+                         + float(np.nansum((dem.misclosure / dem.sigma) ** 2)), offset=offset)
         self.recost(ev)
         return ev
 
@@ -370,8 +423,25 @@ class _Engine:
         changed (no projection)."""
         s = self.s
         dg = ev.pts - s.g_center
+        if ev.offset is not None:  # GCPs: observed = point + their source's shift
+            dg = dg + np.where((s.p_kind == "gcp")[:, None], ev.offset, 0.0)
         ev.cost = (float(np.sum(self.weight[:, None] * ev.vw ** 2)) + ev.cost_fixed
                    + float(np.einsum("ji,jik,jk->", dg, s.g_weight, dg)))
+
+    def _hcp_rows(self, dem: _DemRows, lon: Float64Array, lat: Float64Array,
+                  h: Float64Array, offset: Float64Array | None) -> None:
+        """The HCPs' height observations ``h_obs - h(x) [- the source's shift up]`` into the
+        rows of ``dem`` (in place; an HCP has no DEM row)."""
+        s = self.s
+        assert s.hcp_h is not None and s.hcp_sigma is not None
+        rows = np.flatnonzero(np.isfinite(s.hcp_h))
+        up = _local_to_enu_rotation(s.frame, lon[rows], lat[rows])[:, 2, :]  # d h / d local
+        dem.grad[rows] = up
+        mis = s.hcp_h[rows] - h[rows]
+        if offset is not None:
+            mis = mis - np.einsum("ji,ji->j", up, offset[rows])
+        dem.misclosure[rows] = mis
+        dem.sigma[rows] = s.hcp_sigma[rows]
 
     def _dem_rows(self, lon: Float64Array, lat: Float64Array, h: Float64Array,
                   pts: Float64Array) -> _DemRows:
@@ -452,14 +522,46 @@ class _Engine:
         dem = ev.dem
         has = np.isfinite(dem.misclosure)
         dw = np.where(has, 1.0 / np.where(has, dem.sigma, 1.0) ** 2, 0.0)
-        n_extra = s.g_weight + dw[:, None, None] * dem.grad[:, :, None] * dem.grad[:, None]
-        b_extra = (np.einsum("jik,jk->ji", s.g_weight, s.g_center - pts)
+        g_weight = s.g_weight
+        cols_all: IndexArray = cols
+        point_of, image_of = s.point_of, s.image_of
+        if self.shifts is not None:  # the shifted points' ground rows as pseudo-measurements
+            a, b, vw, cols_all, point_of, image_of = self._with_pseudo(
+                ev, a, b, vw, cols, has, dw)
+            shifted = self.shifts.shifted
+            g_weight = np.where((shifted & (s.p_kind == "gcp"))[:, None, None], 0.0, g_weight)
+            dw = np.where(shifted & (s.p_kind == "hcp"), 0.0, dw)
+        n_extra = g_weight + dw[:, None, None] * dem.grad[:, :, None] * dem.grad[:, None]
+        b_extra = (np.einsum("jik,jk->ji", g_weight, s.g_center - pts)
                    + (dw * np.where(has, dem.misclosure, 0.0))[:, None] * dem.grad)
         return NormalSystem(
-            n_params=s.n_params, gidx=s.gidx, image_of=s.image_of, point_of=s.point_of,
+            n_params=s.n_params, gidx=s.gidx, image_of=image_of, point_of=point_of,
             a=a, b=b, v=vw, n_pp_prior=s.prior_w, b_p_prior=s.prior_w @ (s.prior_x - x),
-            n_xx_extra=n_extra, b_x_extra=b_extra, pairs=self.pairs, cols=cols,
+            n_xx_extra=n_extra, b_x_extra=b_extra, pairs=self.pairs, cols=cols_all,
         )
+
+    def _with_pseudo(self, ev: _Evaluation, a: Float64Array, b: Float64Array,
+                     vw: Float64Array, cols: IndexArray, has: BoolArray, dw: Float64Array,
+                     ) -> tuple[Float64Array, Float64Array, Float64Array, IndexArray,
+                                IndexArray, IndexArray]:
+        """The image measurements' whitened rows (robust weights applied) with the shifted
+        points' ground rows appended as pseudo-measurements; the statistics' a-priori
+        whitened rows (:attr:`prior_whitened`) likewise."""
+        s = self.s
+        shifts = self.shifts
+        assert shifts is not None and ev.offset is not None
+        dem = ev.dem
+        g_res = s.g_center - ev.pts - np.where((s.p_kind == "gcp")[:, None], ev.offset, 0.0)
+        sigma = np.where(has, np.sqrt(1.0 / np.where(dw > 0, dw, 1.0)), np.inf)
+        point, pa, pb, pcols, pv = pseudo_measurements(
+            shifts, s.p_kind == "gcp", self.g_chol_t, g_res, dem.grad,
+            np.where(has, dem.misclosure, np.nan), sigma)
+        (a_all, cols_all), (pa0, _) = padded_columns(a, cols, pa, pcols), self.prior_whitened
+        self.prior_whitened = (padded_columns(pa0, cols, pa, pcols)[0],
+                               np.concatenate([self.prior_whitened[1], pb]))
+        return (a_all, np.concatenate([b, pb]), np.concatenate([vw, pv]), cols_all,
+                np.concatenate([s.point_of, point]),
+                np.concatenate([s.image_of, np.zeros(point.size, np.intp)]))
 
     # ------------------------------------------------------------------ diagnosis
     def diagnose(self, system: NormalSystem, exc: Exception) -> SingularSystemError:
@@ -476,6 +578,8 @@ class _Engine:
         if hasattr(reduced, "toarray"):
             reduced = reduced.toarray()
         labels = [""] * s.n_params
+        if self.shifts is not None:
+            labels[self.shifts.first:] = self.shifts.labels()
         for i, image in enumerate(s.ids):
             for kk, a in enumerate(s.adj[i]):
                 labels[s.gidx[i, kk]] = f"{image}:{s.models[i].parameters.names[a]}"
@@ -550,7 +654,7 @@ class _Engine:
             if self.tp_prior == "floating":
                 # re-centred on the estimate, and released after the first step: a damping
                 # of the first step from the on-board positions, never a pull on the solution
-                tp = s.p_kind == "tp"
+                tp = s.p_kind != "gcp"  # tie points and HCPs
                 s.g_center[tp] = pts[tp]
                 if it == 1:
                     s.g_weight[tp] *= (self.tp_sigma_m_first / FLOATING_TP_SIGMA_M) ** 2
@@ -651,7 +755,7 @@ class _Engine:
         s = self.s
         w = np.where(ev.ok, self.weight, 0.0)
         # D = J Q J^T / sigma^2 (a-priori whitening), every measurement, rejected ones too
-        d = system.hat_blocks(q_pp, q_xx, q_px, *self.prior_whitened)
+        d = system.hat_blocks(q_pp, q_xx, q_px, *self.prior_whitened)[: s.obs.shape[0]]
         eye = np.eye(2)
         i_wd = eye - w[:, None, None] * d
         u = np.where(ev.ok[:, None], ev.v / s.sigma, np.nan)  # a-priori whitened

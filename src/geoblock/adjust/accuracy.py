@@ -19,15 +19,17 @@ All figures are in metres; east/north/up are local to each point.
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
 from geoblock.errors import ShapeMismatchError
 from geoblock.typing import ArrayLike, Float64Array
 
-__all__ = ["CE90_FACTOR", "CE95_FACTOR", "LE90_FACTOR", "LE95_FACTOR", "circular_error_cdf",
-           "empirical_ce", "empirical_le", "nssda_ce", "nssda_le", "predicted_ce",
-           "predicted_le"]
+__all__ = ["CE90_FACTOR", "CE95_FACTOR", "LE90_FACTOR", "LE95_FACTOR", "AccuracyStatement",
+           "accuracy_statement", "circular_error_cdf", "empirical_ce", "empirical_le",
+           "nssda_ce", "nssda_le", "predicted_ce", "predicted_le"]
 
 #: CE90 / sigma of a circular normal error with sigma per axis: ``sqrt(-2 ln 0.10)``.
 CE90_FACTOR = math.sqrt(-2.0 * math.log(0.10))
@@ -213,3 +215,100 @@ def nssda_le(rmse_z: float, p: float = 0.90) -> float:
 
     p = _probability(p)
     return math.sqrt(2.0) * float(erfinv(p)) * rmse_z
+
+
+# --------------------------------------------------------------------------- statements
+@dataclass(frozen=True)
+class AccuracyStatement:
+    """CE90/CE95/LE90 of one image or a block: predicted from the posterior covariance beside
+    the empirical figures at independent check points, metres.
+
+    Attributes
+    ----------
+    image : str or None
+        The image, or None for the whole block.
+    n_icp : int
+        ICP measurements with a finite horizontal error (each measured image point located
+        at the ICP's surveyed height through its adjusted model): the CE figures' sample.
+    ce90_predicted, ce95_predicted : float
+        :func:`predicted_ce` of the ICP measurements' predicted east/north covariances.
+    ce90_empirical, ce95_empirical : float
+        :func:`empirical_ce`: the percentile of the radial errors.
+    ce90_nssda, ce95_nssda : float
+        :func:`nssda_ce` from the RMSE per axis.
+    n_le : int
+        ICPs intersected from two images or more (the LE figures' sample).
+    le90_predicted : float
+        :func:`predicted_le` of their predicted vertical sigmas.
+    le90_empirical, le90_nssda : float
+        :func:`empirical_le` and :func:`nssda_le` of their vertical errors.
+    reason : str
+        Why some figures are NaN ("" when all are given): no ICP, or no ICP measured in two
+        images (vertical figures need an intersection).
+    """
+
+    image: str | None
+    n_icp: int
+    ce90_predicted: float
+    ce90_empirical: float
+    ce90_nssda: float
+    ce95_predicted: float
+    ce95_empirical: float
+    ce95_nssda: float
+    n_le: int
+    le90_predicted: float
+    le90_empirical: float
+    le90_nssda: float
+    reason: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        """The fields as a plain dictionary (NaN kept)."""
+        return asdict(self)
+
+
+def accuracy_statement(de: ArrayLike, dn: ArrayLike, covariance: ArrayLike,
+                       du: ArrayLike = (), sigma_up: ArrayLike = (), *,
+                       image: str | None = None) -> AccuracyStatement:
+    """The :class:`AccuracyStatement` of check-point errors and their predicted covariances.
+
+    Parameters
+    ----------
+    de, dn : array_like, (N,)
+        Horizontal errors at the check points, metres (NaN ignored).
+    covariance : array_like, (N, 2, 2)
+        Their predicted east/north covariances, square metres.
+    du : array_like, (L,)
+        Vertical errors of the check points intersected from two images or more, metres.
+    sigma_up : array_like, (L,)
+        Their predicted vertical sigmas, metres.
+    image : str, optional
+        The label (None: the block).
+    """
+    e = np.asarray(de, dtype=np.float64).ravel()
+    n = np.asarray(dn, dtype=np.float64).ravel()
+    cov = np.asarray(covariance, dtype=np.float64).reshape(-1, 2, 2)
+    ok = np.isfinite(e) & np.isfinite(n)
+    e, n, cov = e[ok], n[ok], cov[ok] if cov.shape[0] == ok.size else cov
+    z = np.asarray(du, dtype=np.float64).ravel()
+    s = np.asarray(sigma_up, dtype=np.float64).ravel()
+    zok = np.isfinite(z) & (np.isfinite(s) if s.size == z.size else True)
+    z, s = z[zok], (s[zok] if s.size == zok.size else s)
+    nan = float("nan")
+    reasons = []
+    if e.size == 0:
+        reasons.append("no ICP")
+        ce = (nan,) * 6
+    else:
+        rmse_e, rmse_n = math.sqrt(float(np.mean(e**2))), math.sqrt(float(np.mean(n**2)))
+        ce = (predicted_ce(cov, 0.90), empirical_ce(e, n, 0.90), nssda_ce(rmse_e, rmse_n, 0.90),
+              predicted_ce(cov, 0.95), empirical_ce(e, n, 0.95), nssda_ce(rmse_e, rmse_n, 0.95))
+    if z.size == 0:
+        if e.size:
+            reasons.append("LE90 n/a: no ICP measured in two images or more (a vertical "
+                           "error needs an intersection)")
+        le = (nan, nan, nan)
+    else:
+        le = (predicted_le(s, 0.90), empirical_le(z, 0.90),
+              nssda_le(math.sqrt(float(np.mean(z**2))), 0.90))
+    return AccuracyStatement(image, int(e.size), *ce, int(z.size), *le,
+                             reason="; ".join(reasons))

@@ -75,9 +75,11 @@ from geoblock.adjust.problem import (
 )
 from geoblock.adjust.results import (
     BlockResult,
+    HeightControlResults,
     MeasurementResults,
     ParameterEstimates,
     PointResults,
+    SourceShift,
 )
 
 __all__ = [
@@ -243,6 +245,8 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
     history: list[dict[str, Any]] = []
     q_by_image: dict[str, tuple[IndexArray, Float64Array]] = {}
     threshold = np.inf
+    shifts: dict[str, SourceShift] = {}
+    hcp_parts: list[tuple[Any, ...]] = []
     for engine, out, st in solutions:
         s = engine.s
         ev = out.ev
@@ -287,9 +291,33 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         point_parts.append({"id": s.p_id, "kind": s.p_kind, "lon": ev.lon, "lat": ev.lat,
                             "h": ev.h, "cov": cov_enu, "images": s.n_images, "dem": dem_h,
                             "status": status})
+        sh = engine.shifts
+        if sh is not None:
+            k0 = sh.first
+            q_shift = st.q_pp[k0:, k0:] * var0
+            for i_src, source in enumerate(sh.sources):
+                idx = sh.index[i_src]
+                have = idx >= 0
+                values = np.zeros(3)
+                cov3 = np.zeros((3, 3))
+                values[have] = out.x[idx[have]]
+                cov3[np.ix_(have, have)] = q_shift[np.ix_(idx[have] - k0, idx[have] - k0)]
+                key = source if mode == "block" else f"{source} @ {s.ids[0]}"
+                shifts[key] = SourceShift(
+                    source=source, solution="block" if mode == "block" else s.ids[0],
+                    values=values, sigmas=np.sqrt(np.diag(cov3)),
+                    prior_sigmas=sh.prior_sigma[i_src].copy(), covariance=cov3,
+                    lon=float(sh.centroid[i_src, 0]), lat=float(sh.centroid[i_src, 1]),
+                    h=float(sh.centroid[i_src, 2]), n_points=int(sh.n_points[i_src]))
+        if s.hcp_h is not None:
+            j = np.flatnonzero(np.isfinite(s.hcp_h))
+            hcp_parts.append((s.p_id[j], s.hcp_h[j], ev.h[j], s.hcp_sigma[j]
+                              if s.hcp_sigma is not None else np.full(j.size, np.nan),
+                              np.sqrt(cov_enu[j, 2, 2])))
     if mode == "block":  # one solution: the full covariance, cross-image terms included
         var0 = cost / dof if dof > 0 else 1.0
-        covariance = solutions[0][2].q_pp * var0
+        k_models = solutions[0][0].s.n_model_params  # the source shifts come after
+        covariance = solutions[0][2].q_pp[:k_models, :k_models] * var0
     else:  # independent images: block diagonal
         k = sum(b.shape[0] for b in cov_blocks)
         covariance = np.zeros((k, k))
@@ -329,7 +357,34 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
             col = fit_collocation(meas.row[use], meas.col[use], v[use, 0], v[use, 1], **options)
             models[image] = CollocationCorrection(models[image], col)
 
-    check, predicted, v_check = _check_points(block, models, q_by_image, sigma0, adjusted)
+    check, predicted, v_check, pred_cov = _check_points(block, models, q_by_image, sigma0,
+                                                        adjusted)
+    ground = block.ground
+    check_source = (np.empty(0, str) if ground is None or not len(check)
+                    else ground.source[lookup(ground.id, check.id)])
+    vertical = None
+    if ground is not None and np.any(meas.kind == "icp"):
+        from geoblock.adjust._vertical import vertical_check
+
+        vertical = vertical_check(block, models, adjusted, covariance, index)
+    hcp = None
+    if hcp_parts:
+        ids_h, obs_h, adj_h, sig_h, post_h = (np.concatenate(x) for x in zip(*hcp_parts,
+                                                                              strict=True))
+        _, first_h = np.unique(ids_h, return_index=True)
+        first_h = np.sort(first_h)
+        assert ground is not None  # HCPs come from the ground points
+        hcp = HeightControlResults(
+            id=ids_h[first_h].astype(str), source=ground.source[lookup(ground.id,
+                                                                      ids_h[first_h])],
+            observed=obs_h[first_h], adjusted=adj_h[first_h], sigma=sig_h[first_h],
+            posterior_sigma=post_h[first_h])
+    if ground is not None:
+        unused = ~np.isin(ground.id, meas.id) & (ground.kind != "icp")
+        if unused.any():
+            notes.append(f"{int(unused.sum())} ground control point(s) with no image "
+                         f"measurement left out: {', '.join(ground.id[unused][:8].tolist())}"
+                         f"{' ...' if unused.sum() > 8 else ''}")
     icp_rows = np.isin(meas.kind, ("icp",))
     v[icp_rows] = v_check[icp_rows]
     ictp = None
@@ -359,7 +414,8 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         points=points, measurements=measurements, check=check, predicted_sigma=predicted,
         ictp=ictp, sigma0=sigma0, dof=dof, converged=bool(converged), iterations=iterations,
         history=history, mode=mode, dem_control=dem_control if mode == "block" else "none",
-        robust=robust, notes=notes)
+        robust=robust, notes=notes, predicted_covariance=pred_cov, check_source=check_source,
+        shifts=shifts, hcp=hcp, vertical=vertical)
 
 
 def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) -> PointErrors:
@@ -382,10 +438,12 @@ def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) 
 def _check_points(block: Block, models: Mapping[str, SensorModel],
                   q_by_image: Mapping[str, tuple[IndexArray, Float64Array]], sigma0: float,
                   adjusted: Mapping[str, SensorModel] | None = None,
-                  ) -> tuple[PointErrors, Float64Array, Float64Array]:
+                  ) -> tuple[PointErrors, Float64Array, Float64Array, Float64Array]:
     """GCP/ICP ground errors per measurement through ``models``, their sigmas predicted
     through ``adjusted`` (the models whose parameters ``q_by_image`` gives, per image, the
-    adjusted indices and their covariance of; default ``models``), image residuals."""
+    adjusted indices and their covariance of; default ``models``), image residuals, and the
+    predicted east/north covariances (N, 2, 2). A point's own survey sigmas and its source's
+    common error (``sigma_shift_*``) count as independent errors of the reference."""
     adjusted = models if adjusted is None else adjusted
     meas = block.measurements
     n = len(meas)
@@ -395,12 +453,16 @@ def _check_points(block: Block, models: Mapping[str, SensorModel],
     if ground is None or sel.size == 0:
         empty = np.empty(0)
         return PointErrors(np.empty(0, str), np.empty(0, str), empty, empty), \
-            np.empty((0, 2)), v
+            np.empty((0, 2)), v, np.empty((0, 2, 2))
     g = lookup(ground.id, meas.id[sel])
     lon, lat, h = ground.lon[g], ground.lat[g], ground.h[g]
     e = np.full(sel.size, np.nan)
     nn = np.full(sel.size, np.nan)
     pred = np.full((sel.size, 2), np.nan)
+    pred_cov = np.full((sel.size, 2, 2), np.nan)
+    ref_e2 = ground.sigma_e[g] ** 2 + ground.sigma_shift_e[g] ** 2
+    ref_n2 = ground.sigma_n[g] ** 2 + ground.sigma_shift_n[g] ** 2
+    ref_h2 = ground.sigma_h[g] ** 2 + ground.sigma_shift_h[g] ** 2
     for image, model in models.items():
         mine = np.flatnonzero(meas.image[sel] == image)
         if mine.size == 0:
@@ -425,12 +487,12 @@ def _check_points(block: Block, models: Mapping[str, SensorModel],
             a = model.partials_parameters(lon[mine], lat[mine], h[mine])[..., adjustable]
             cov_img = cov_img + a @ q @ np.swapaxes(a, 1, 2)
         up = jg[:, :, 2:3]
-        cov_img = cov_img + up @ np.swapaxes(up, 1, 2) * (ground.sigma_h[g][mine] ** 2)[
-            :, None, None]
+        cov_img = cov_img + up @ np.swapaxes(up, 1, 2) * ref_h2[mine][:, None, None]
         cov = m_inv @ cov_img @ np.swapaxes(m_inv, 1, 2)
-        cov[:, 0, 0] += ground.sigma_e[g][mine] ** 2
-        cov[:, 1, 1] += ground.sigma_n[g][mine] ** 2
+        cov[:, 0, 0] += ref_e2[mine]
+        cov[:, 1, 1] += ref_n2[mine]
         pred[mine] = np.sqrt(np.einsum("nii->ni", cov))
+        pred_cov[mine] = cov
     check = PointErrors(meas.id[sel], meas.kind[sel], e, nn, None, v[sel, 0], v[sel, 1],
                         meas.image[sel])
-    return check, pred, v
+    return check, pred, v, pred_cov

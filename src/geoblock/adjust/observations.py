@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from geoblock.errors import ObservationError
 from geoblock.typing import ArrayLike, BoolArray, Float64Array, IndexArray, StrArray
 
-__all__ = ["KINDS", "ControlPoints", "GroundPoints", "ImagePoints"]
+__all__ = ["DEFAULT_SOURCE", "GROUND_KINDS", "KINDS", "ControlPoints", "GroundPoints",
+           "ImagePoints"]
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -120,9 +123,15 @@ class ControlPoints:
         return ControlPoints(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
 
-KINDS = ("gcp", "icp", "tp", "ictp")
-"""Point kinds: ground control (GCP), independent check (ICP), tie (TP) and independent check
-tie point (ICTP). GCPs and TPs enter an adjustment; ICPs and ICTPs are only evaluated."""
+KINDS = ("gcp", "icp", "tp", "ictp", "hcp")
+"""Point kinds: ground control (GCP), independent check (ICP), tie (TP), independent check
+tie point (ICTP) and height control point (HCP: a tie point whose height is observed). GCPs,
+TPs and HCPs enter an adjustment; ICPs and ICTPs are only evaluated."""
+
+#: kinds of the ground CSV's rows
+GROUND_KINDS = ("gcp", "icp", "hcp")
+#: the ``source`` of a ground row that does not say
+DEFAULT_SOURCE = "survey"
 
 
 def _text(value: ArrayLike, n: int | None, name: str, where: str) -> StrArray:
@@ -165,22 +174,40 @@ def _name_points(ids: StrArray, bad: BoolArray) -> str:
 
 @dataclass(frozen=True, eq=False, init=False)
 class GroundPoints:
-    """Surveyed ground points of a block, one row per point (the ground CSV of a block).
+    """Ground points of a block, one row per point (the ground CSV of a block).
 
     Parameters
     ----------
     id : array_like of str, (N,)
         Unique point identifiers (the ``id`` column of the image measurements refers to them).
     kind : array_like of str, (N,)
-        ``gcp`` (enters the adjustment as a weighted ground observation) or ``icp``
-        (independent check point: only evaluated).
+        ``gcp`` (enters the adjustment as a weighted observation of the point's east, north
+        and up), ``icp`` (independent check point: only evaluated) or ``hcp`` (height control
+        point: only ``h`` is an observation, of a tie point's height).
     lon, lat : array_like, (N,)
-        Degrees (WGS84).
+        Degrees (WGS84). An ``hcp`` may leave them NaN; when given they are only its initial
+        position, never an observation.
     h : array_like, (N,)
         Metres above the WGS84 ellipsoid.
     sigma_e, sigma_n, sigma_h : array_like, (N,) or scalar
-        Standard deviations of the surveyed coordinates along local east, north and up,
-        metres (0: error-free; the adjustment floors them at 1 mm).
+        Standard deviations of each point's own (independent) error along local east, north
+        and up, metres (0: error-free; the adjustment floors them at 1 mm). An ``hcp`` needs
+        a finite ``sigma_h > 0``.
+    source : array_like of str, (N,) or str
+        Where the coordinates come from (default ``"survey"``; a reference orthoimage's
+        control carries ``"reference:<file name>"``). Reports give statistics per source.
+    sigma_shift_e, sigma_shift_n, sigma_shift_h : array_like, (N,) or scalar
+        Standard deviation of an error common to all points of the same ``source`` (e.g. a
+        reference orthoimage's misregistration) along local east, north and up at the
+        source's centroid, metres; equal within a source (0: none). The adjustment estimates
+        that common shift (:attr:`~geoblock.adjust.BlockResult.shifts`).
+
+    Raises
+    ------
+    ObservationError
+        An unknown kind, a non-finite coordinate (a GCP/ICP without ``lon``/``lat``), a
+        negative sigma, an HCP whose ``sigma_h`` is not finite and > 0, duplicate ids, or
+        shift sigmas that differ within a source (the message names the points or source).
     """
 
     id: StrArray
@@ -191,6 +218,10 @@ class GroundPoints:
     sigma_e: Float64Array
     sigma_n: Float64Array
     sigma_h: Float64Array
+    source: StrArray
+    sigma_shift_e: Float64Array
+    sigma_shift_n: Float64Array
+    sigma_shift_h: Float64Array
 
     def __init__(
         self,
@@ -202,24 +233,37 @@ class GroundPoints:
         sigma_e: ArrayLike = 0.0,
         sigma_n: ArrayLike = 0.0,
         sigma_h: ArrayLike = 0.0,
+        source: ArrayLike = DEFAULT_SOURCE,
+        sigma_shift_e: ArrayLike = 0.0,
+        sigma_shift_n: ArrayLike = 0.0,
+        sigma_shift_h: ArrayLike = 0.0,
     ) -> None:
         where = "ground points"
         ids = _text(id, None, "id", where)
         n = ids.shape[0]
         kind = np.char.lower(np.char.strip(_text(kind, n, "kind", where)))
-        bad = ~np.isin(kind, ("gcp", "icp"))
+        bad = ~np.isin(kind, GROUND_KINDS)
         if bad.any():
             raise ObservationError(
-                f"{where}: kind must be 'gcp' or 'icp' (points {_name_points(ids, bad)} have "
-                f"{sorted(set(kind[bad].tolist()))}); tie points have no ground coordinates")
+                f"{where}: kind must be 'gcp', 'icp' or 'hcp' (points {_name_points(ids, bad)} "
+                f"have {sorted(set(kind[bad].tolist()))}); tie points have no ground "
+                "coordinates")
+        hcp = kind == "hcp"
+        src = np.char.strip(_text(source, n, "source", where))
+        src = np.where(src == "", DEFAULT_SOURCE, src)
         given = {"lon": lon, "lat": lat, "h": h, "sigma_e": sigma_e, "sigma_n": sigma_n,
-                 "sigma_h": sigma_h}
+                 "sigma_h": sigma_h, "sigma_shift_e": sigma_shift_e,
+                 "sigma_shift_n": sigma_shift_n, "sigma_shift_h": sigma_shift_h}
         values = {}
         for name, value in given.items():
             arr = _floats(value, n, name, where)
             bad = ~np.isfinite(arr)
+            if name in ("lon", "lat"):
+                bad &= ~hcp  # an HCP's planimetry is optional (only an initial position)
             if name.startswith("sigma"):
                 bad |= arr < 0
+                if name == "sigma_h":
+                    bad &= ~hcp  # an HCP's sigma_h has its own rule, below
             elif name == "lat":
                 bad |= np.abs(arr) > 90
             elif name == "lon":
@@ -232,14 +276,33 @@ class GroundPoints:
                                        f"{_name_points(ids, bad)})")
             arr.flags.writeable = False
             values[name] = arr
+        bad = hcp & ~(values["sigma_h"] > 0)
+        if bad.any():
+            raise ObservationError(
+                f"{where}: a height control point (kind hcp) needs a finite sigma_h > 0, the "
+                f"accuracy of its height (points {_name_points(ids, bad)})")
+        bad = hcp & (np.isfinite(values["lon"]) != np.isfinite(values["lat"]))
+        if bad.any():
+            raise ObservationError(f"{where}: lon and lat must be both given or both empty "
+                                   f"(points {_name_points(ids, bad)})")
         unique, counts = np.unique(ids, return_counts=True)
         if (counts > 1).any():
             dup = unique[counts > 1][:5].tolist()
             raise ObservationError(f"{where}: duplicate point ids {dup}")
-        ids.flags.writeable = False
-        kind.flags.writeable = False
-        object.__setattr__(self, "id", ids)
-        object.__setattr__(self, "kind", kind)
+        shift = np.stack([values[f"sigma_shift_{a}"] for a in "enh"], -1)
+        names, inverse = np.unique(src, return_inverse=True)
+        for k in np.flatnonzero([np.ptp(shift[inverse == i], axis=0).max(initial=0.0) > 0
+                                 for i in range(names.size)]):
+            rows = inverse == k
+            raise ObservationError(
+                f"{where}: sigma_shift_e/n/h are the error common to all points of a source, "
+                f"so they must be equal within it; source {str(names[k])!r} has "
+                f"{sorted({tuple(r) for r in shift[rows].tolist()})[:4]} (points "
+                f"{_name_points(ids, rows)})")
+        for name, text in (("id", ids), ("kind", kind), ("source", src)):
+            text = np.asarray(text).astype(str)
+            text.flags.writeable = False
+            object.__setattr__(self, name, text)
         for name, arr in values.items():
             object.__setattr__(self, name, arr)
 
@@ -251,24 +314,44 @@ class GroundPoints:
                      kind: str = "gcp") -> GroundPoints:
         """From the columns of a ground CSV (:func:`geoblock.io.read_points`).
 
-        ``id, lon, lat, h`` are required; ``sigma_e, sigma_n, sigma_h`` default to 0 and
-        ``kind`` to ``kind``.
+        ``id, h`` are required, and ``lon, lat`` unless every row is an ``hcp`` (absent:
+        NaN); ``sigma_e, sigma_n, sigma_h`` and ``sigma_shift_e, sigma_shift_n,
+        sigma_shift_h`` default to 0, ``source`` to ``"survey"`` and ``kind`` to ``kind``.
+        (``source`` here is the file's name in messages; the column is ``columns["source"]``.)
         """
-        missing = [c for c in ("id", "lon", "lat", "h") if c not in columns]
+        missing = [c for c in ("id", "h") if c not in columns]
+        n = len(np.asarray(columns["id"])) if "id" in columns else 0
+        kinds = np.char.lower(np.char.strip(np.asarray(
+            columns.get("kind", np.full(n, kind))).astype(str)))
+        if not np.all(kinds == "hcp"):
+            missing += [c for c in ("lon", "lat") if c not in columns]
         if missing:
             raise ObservationError(f"{source}: missing column(s) {missing}")
-        n = len(np.asarray(columns["id"]))
+        nan = np.full(n, np.nan)
         try:
-            return cls(columns["id"], columns.get("kind", np.full(n, kind)), columns["lon"],
-                       columns["lat"], columns["h"], columns.get("sigma_e", 0.0),
-                       columns.get("sigma_n", 0.0), columns.get("sigma_h", 0.0))
+            return cls(columns["id"], columns.get("kind", np.full(n, kind)),
+                       columns.get("lon", nan), columns.get("lat", nan), columns["h"],
+                       columns.get("sigma_e", 0.0), columns.get("sigma_n", 0.0),
+                       columns.get("sigma_h", 0.0), columns.get("source", DEFAULT_SOURCE),
+                       columns.get("sigma_shift_e", 0.0), columns.get("sigma_shift_n", 0.0),
+                       columns.get("sigma_shift_h", 0.0))
         except ObservationError as exc:
             raise ObservationError(str(exc).replace("ground points", source, 1)) from None
+
+    def columns(self) -> dict[str, NDArray[Any]]:
+        """The ground CSV's columns (:func:`geoblock.io.write_points`), every field in
+        order: what :meth:`from_columns` reads back unchanged."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
 
     def subset(self, mask: ArrayLike) -> GroundPoints:
         """The points selected by a boolean mask or an index array."""
         m = np.asarray(mask)
         return GroundPoints(*(getattr(self, f.name)[m] for f in fields(self)))
+
+    @property
+    def shift_sigmas(self) -> Float64Array:
+        """(N, 3) ``sigma_shift_e, sigma_shift_n, sigma_shift_h`` per point, metres."""
+        return np.stack([self.sigma_shift_e, self.sigma_shift_n, self.sigma_shift_h], -1)
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -286,7 +369,7 @@ class ImagePoints:
     sigma_row, sigma_col : array_like, (M,) or scalar
         Standard deviations, pixels (default 0.5 px, Teo et al.).
     kind : array_like of str, (M,), optional
-        ``gcp``, ``icp``, ``tp`` or ``ictp``; empty strings are resolved by
+        ``gcp``, ``icp``, ``tp``, ``ictp`` or ``hcp``; empty strings are resolved by
         :meth:`resolve_kinds` (a point with ground coordinates takes their kind, any other
         one is a TP).
     """
@@ -373,19 +456,20 @@ class ImagePoints:
         """Kinds filled in and checked against the ground points.
 
         A measurement without a kind takes its ground point's kind, or ``tp`` when the point
-        has no ground coordinates. A measurement marked ``gcp``/``icp`` whose point is not in
+        has no ground row. A measurement marked ``gcp``/``icp``/``hcp`` whose point is not in
         the ground file, or whose ground kind differs, is an error naming the point.
         """
         k = (np.full(len(self), -1, np.intp) if ground is None
              else lookup(ground.id, self.id))
         found = k >= 0
-        ground_kind = np.where(found, ground.kind[k] if ground is not None else "", "")
+        ground_kind = np.where(found, ground.kind[np.maximum(k, 0)]
+                               if ground is not None and len(ground) else "", "")
         kind = np.where(self.kind == "", np.where(found, ground_kind, "tp"), self.kind)
-        bad = np.isin(kind, ("gcp", "icp")) & ~found
+        bad = np.isin(kind, GROUND_KINDS) & ~found
         if bad.any():
             raise ObservationError(f"image measurements: points {_name_points(self.id, bad)} are "
-                                   "marked gcp/icp but have no row in the ground points")
-        bad = found & (kind != ground_kind) & np.isin(kind, ("gcp", "icp"))
+                                   "marked gcp/icp/hcp but have no row in the ground points")
+        bad = found & (kind != ground_kind) & np.isin(kind, GROUND_KINDS)
         if bad.any():
             raise ObservationError(f"image measurements: points {_name_points(self.id, bad)} "
                                    "have another kind than in the ground points")

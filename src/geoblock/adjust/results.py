@@ -22,9 +22,10 @@ from geoblock.typing import (
 )
 
 if TYPE_CHECKING:
-    pass
+    from geoblock.adjust.accuracy import AccuracyStatement
 
-__all__ = ["BlockResult", "MeasurementResults", "ParameterEstimates", "PointResults"]
+__all__ = ["BlockResult", "HeightControlResults", "MeasurementResults", "ParameterEstimates",
+           "PointResults", "SourceShift", "VerticalCheck"]
 
 
 # ================================================================================ results
@@ -111,6 +112,112 @@ class PointResults:
 
 
 @dataclass(frozen=True, eq=False)
+class SourceShift:
+    """The estimated error common to the control points of one source (a reference
+    orthoimage's misregistration), along local east, north and up at the source's centroid.
+
+    Attributes
+    ----------
+    source : str
+        The ground points' ``source``.
+    solution : str
+        ``"block"``, or in single mode the image whose solution estimated it.
+    values : ndarray, (3,)
+        Estimated shift e, n, h, metres: the source's coordinates minus the truth the block
+        sees (0 on an axis without a shift sigma).
+    sigmas : ndarray, (3,)
+        Posterior standard deviations, metres (0 on such an axis).
+    prior_sigmas : ndarray, (3,)
+        ``sigma_shift_e, _n, _h``, metres.
+    covariance : ndarray, (3, 3)
+        Posterior covariance, square metres.
+    lon, lat, h : float
+        The source's centroid (degrees, metres), where its east/north/up axes are taken.
+    n_points : int
+        Its control points in the solution.
+    """
+
+    source: str
+    solution: str
+    values: Float64Array
+    sigmas: Float64Array
+    prior_sigmas: Float64Array
+    covariance: Float64Array
+    lon: float
+    lat: float
+    h: float
+    n_points: int
+
+
+@dataclass(frozen=True, eq=False)
+class HeightControlResults:
+    """The height control points (kind ``hcp``) of an adjustment, arrays (H,).
+
+    ``observed`` their height (metres above the ellipsoid), ``adjusted`` the adjusted tie
+    point's, ``residual = observed - adjusted``, ``sigma`` the a-priori ``sigma_h`` and
+    ``posterior_sigma`` the adjusted height's posterior sigma (metres); ``source`` as in the
+    ground points.
+    """
+
+    id: StrArray
+    source: StrArray
+    observed: Float64Array
+    adjusted: Float64Array
+    sigma: Float64Array
+    posterior_sigma: Float64Array
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    @property
+    def residual(self) -> Float64Array:
+        """(H,) observed minus adjusted height, metres."""
+        return self.observed - self.adjusted
+
+    def stats(self) -> dict[str, float | int]:
+        """``n``, ``rmse``, ``mean``, ``max`` (signed, largest magnitude) and
+        ``rms_normalised`` (RMS of residual / sigma) of the finite residuals, metres."""
+        r = self.residual
+        ok = np.isfinite(r)
+        r, sig = r[ok], self.sigma[ok]
+        if r.size == 0:
+            nan = float("nan")
+            return {"n": 0, "rmse": nan, "mean": nan, "max": nan, "rms_normalised": nan}
+        return {"n": int(r.size), "rmse": float(np.sqrt(np.mean(r**2))),
+                "mean": float(np.mean(r)), "max": float(r[np.argmax(np.abs(r))]),
+                "rms_normalised": float(np.sqrt(np.mean((r / sig) ** 2)))}
+
+
+@dataclass(frozen=True, eq=False)
+class VerticalCheck:
+    """ICPs measured in two images or more, intersected through the adjusted models
+    (:func:`geoblock.triangulation.triangulate`), arrays (L,).
+
+    ``e, n, u`` the intersected point minus the surveyed one, metres along local east, north,
+    up (NaN where the intersection failed); ``covariance`` (L, 3, 3) its predicted
+    covariance (first-order propagation of the image noise and of the parameters' posterior
+    covariance, plus the survey's sigmas); ``rays`` the images intersected; ``status`` the
+    triangulation's.
+    """
+
+    id: StrArray
+    rays: Any
+    e: Float64Array
+    n: Float64Array
+    u: Float64Array
+    covariance: Float64Array
+    status: Any
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    @property
+    def sigma_up(self) -> Float64Array:
+        """(L,) predicted vertical sigma, metres."""
+        return np.sqrt(self.covariance[:, 2, 2])
+
+
+@dataclass(frozen=True, eq=False)
 class BlockResult:
     """Outcome of :func:`adjust`.
 
@@ -144,6 +251,18 @@ class BlockResult:
     mode, dem_control, robust : str
     notes : list of str
         What the user should know (assumed values, dropped points ...).
+    predicted_covariance : ndarray, (N, 2, 2)
+        For the rows of ``check``: the full predicted east/north covariance of the error
+        (``predicted_sigma`` is the square root of its diagonal), square metres.
+    check_source : ndarray of str, (N,)
+        For the rows of ``check``: the ground point's ``source``.
+    shifts : dict of str to SourceShift
+        The common error estimated for each source with a shift sigma, by source (single
+        mode: ``"<source> @ <image>"``).
+    hcp : HeightControlResults or None
+        The height control points in the solution.
+    vertical : VerticalCheck or None
+        ICPs measured in two images or more, intersected: the vertical accuracy.
     """
 
     models: dict[str, SensorModel]
@@ -164,6 +283,11 @@ class BlockResult:
     dem_control: str = "observation"
     robust: str = "none"
     notes: list[str] = field(default_factory=list)
+    predicted_covariance: Float64Array | None = None
+    check_source: StrArray | None = None
+    shifts: dict[str, SourceShift] = field(default_factory=dict)
+    hcp: HeightControlResults | None = None
+    vertical: VerticalCheck | None = None
 
     def parameter_covariance(self, image: str) -> tuple[tuple[str, ...], Float64Array]:
         """The posterior covariance of one image's adjusted parameters.
@@ -211,6 +335,62 @@ class BlockResult:
             if len(sel):
                 out[image] = sel.stats()
         return out
+
+    def stats_by_source(self, kind: str, image: str | None = None,
+                        ) -> dict[str, AccuracyStats]:
+        """:meth:`stats` per ground-point ``source`` (``"survey"``, ``"reference:<file>"``
+        ...), over every image or one."""
+        sources = self._check_sources()
+        out: dict[str, AccuracyStats] = {}
+        rows = self.check.kind == kind.upper()
+        if image is not None:
+            rows &= self.check.image == image
+        for source in dict.fromkeys(sources[rows].tolist()):
+            sel = rows & (sources == source)
+            out[str(source)] = AccuracyStats.from_errors(self.check.e[sel], self.check.n[sel])
+        return out
+
+    def _check_sources(self) -> StrArray:
+        if self.check_source is None or len(self.check_source) != len(self.check):
+            return np.full(len(self.check), "survey")
+        return np.asarray(self.check_source).astype(str)
+
+    def accuracy_statement(self, image: str | None = None) -> AccuracyStatement:
+        """CE90/CE95/LE90 predicted from the posterior covariance beside the empirical figures
+        at the ICPs, of one image or (None) of the block.
+
+        CE: over the ICP measurements (of ``image``): :func:`~geoblock.adjust.accuracy.
+        predicted_ce` of their predicted east/north covariances, the 90th/95th percentile of
+        their radial errors and the NSSDA figure from their RMSE. LE90: over the ICPs measured
+        in two images or more (one of them ``image``), intersected through the adjusted
+        models (:attr:`vertical`); NaN with :attr:`AccuracyStatement.reason` when there is
+        none.
+
+        Raises
+        ------
+        KeyError
+            ``image`` is not in the block.
+        """
+        from geoblock.adjust.accuracy import accuracy_statement
+
+        if image is not None and image not in self.models:
+            raise KeyError(f"BlockResult.accuracy_statement: no image {image!r} in the block "
+                           f"(images: {list(self.models)})")
+        rows = self.check.kind == "ICP"
+        if image is not None:
+            rows &= self.check.image == image
+        cov = (self.predicted_covariance if self.predicted_covariance is not None
+               else self.predicted_sigma[:, :, None] ** 2 * np.eye(2))
+        du = sig = np.empty(0)
+        v = self.vertical
+        if v is not None and len(v):
+            mine = np.ones(len(v), bool)
+            if image is not None:
+                m = self.measurements
+                mine = np.isin(v.id, m.id[(m.image == image) & (m.kind == "icp")])
+            du, sig = v.u[mine], v.sigma_up[mine]
+        return accuracy_statement(self.check.e[rows], self.check.n[rows], cov[rows], du, sig,
+                                  image=image)
 
     def ictp_by_pair(self) -> dict[tuple[str, str], AccuracyStats]:
         """ICTP discrepancy statistics per pair of images (Teo et al.'s relative accuracy)."""

@@ -2,8 +2,9 @@
 
 Column names follow the conventions: ground ``lon, lat, h`` (degrees, metres above the
 ellipsoid), image ``row, col`` (pixels, pixel-centre convention), accuracies ``sigma_row,
-sigma_col`` (pixels) and ``sigma_e, sigma_n, sigma_h`` (metres), and the text columns ``id``,
-``kind`` (``gcp`` | ``icp``) and ``image``. Other columns are kept as text, exactly as written.
+sigma_col`` (pixels) and ``sigma_e, sigma_n, sigma_h``, ``sigma_shift_e, sigma_shift_n,
+sigma_shift_h`` (metres), and the text columns ``id``, ``kind`` (``gcp`` | ``icp`` | ``hcp``),
+``source`` and ``image``. Other columns are kept as text, exactly as written.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ __all__ = ["PointFileError", "read_observations", "read_points", "write_points"]
 
 NUMERIC_COLUMNS = frozenset(
     {"lon", "lat", "h", "row", "col", "x", "y", "z", "sigma", "sigma_row", "sigma_col",
-     "sigma_e", "sigma_n", "sigma_h"}
+     "sigma_e", "sigma_n", "sigma_h", "sigma_shift_e", "sigma_shift_n", "sigma_shift_h"}
 )
 
 
@@ -193,7 +194,9 @@ def read_observations(
     Parameters
     ----------
     ground : path or None
-        Ground CSV: ``id, lon, lat, h[, sigma_e, sigma_n, sigma_h][, kind]`` (kind gcp|icp).
+        Ground CSV: ``id, lon, lat, h[, sigma_e, sigma_n, sigma_h][, kind][, source]
+        [, sigma_shift_e, sigma_shift_n, sigma_shift_h]`` (kind gcp|icp|hcp; ``lon, lat``
+        may be empty in ``hcp`` rows, and absent when every row is one).
     image : path
         Image-measurement CSV: ``id, image, row, col[, sigma | sigma_row, sigma_col][, kind]``.
     sigma_px : float
@@ -215,7 +218,8 @@ def read_observations(
         measurements = ImagePoints.from_columns(read_points(image, required=("row", "col")),
                                                 source=str(image), sigma=sigma_px)
         points = None if ground is None else GroundPoints.from_columns(
-            read_points(ground, required=("lon", "lat", "h")), source=str(ground))
+            read_points(ground, required=("h",)), source=str(ground))
     except ObservationError as exc:
         raise PointFileError(str(exc)) from None
     return points, measurements
+
