@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from geoblock.adjust.accuracy import AccuracyStatement
 from geoblock.adjust.block import BlockResult
 from geoblock.adjust.statistics import AccuracyStats, ImageResidualStats
 from geoblock.io import files
@@ -31,7 +32,8 @@ from geoblock.report.figures import correction_curve_plot, error_vector_plot, to
 from geoblock.report.tables import stats_table
 from geoblock.typing import ArrayLike
 
-__all__ = ["check_output_directory", "correction_curves", "correction_figure",
+__all__ = ["accuracy_statements", "check_output_directory", "correction_curves",
+           "correction_figure",
            "image_residuals", "report_markdown", "result_dict", "write_result"]
 
 #: Plotting unit and factor of a correction curve's unit (others plot as they are).
@@ -52,6 +54,8 @@ def result_dict(result: BlockResult, single: BlockResult | None = None) -> dict[
     """JSON-safe report of a block adjustment (and of a single adjustment to compare with)."""
     m = result.measurements
     p = result.points
+    sources = result._check_sources()
+    pred_cov = result.predicted_covariance
     out: dict[str, Any] = {
         "mode": result.mode, "dem_control": result.dem_control, "robust": result.robust,
         "converged": result.converged, "iterations": result.iterations,
@@ -82,11 +86,41 @@ def result_dict(result: BlockResult, single: BlockResult | None = None) -> dict[
             for j in range(len(p.id))],
         "check_points": [
             {"id": str(result.check.id[i]), "image": str(result.check.image[i]),
-             "kind": str(result.check.kind[i]).lower(), "e": _f(result.check.e[i]),
+             "kind": str(result.check.kind[i]).lower(), "source": str(sources[i]),
+             "e": _f(result.check.e[i]),
              "n": _f(result.check.n[i]), "predicted_sigma_e": _f(result.predicted_sigma[i, 0]),
-             "predicted_sigma_n": _f(result.predicted_sigma[i, 1])}
+             "predicted_sigma_n": _f(result.predicted_sigma[i, 1]),
+             "predicted_covariance_en_m2": None if pred_cov is None
+             else [[_f(v) for v in row] for row in pred_cov[i]]}
             for i in range(len(result.check.id))],
+        "source_shifts": {
+            key: {"source": sh.source, "solution": sh.solution, "n_points": sh.n_points,
+                  "centroid": {"lon": _f(sh.lon), "lat": _f(sh.lat), "h": _f(sh.h)},
+                  **{f"shift_{a}_m": _f(v) for a, v in zip("enh", sh.values, strict=True)},
+                  **{f"sigma_{a}_m": _f(v) for a, v in zip("enh", sh.sigmas, strict=True)},
+                  **{f"prior_sigma_{a}_m": _f(v)
+                     for a, v in zip("enh", sh.prior_sigmas, strict=True)}}
+            for key, sh in result.shifts.items()},
+        "accuracy_statements": {
+            ("block" if st.image is None else f"image:{st.image}"): {
+                k: (_f(v) if isinstance(v, float) else v) for k, v in st.as_dict().items()}
+            for st in accuracy_statements(result)},
     }
+    if result.hcp is not None:
+        h = result.hcp
+        out["height_control"] = {
+            "statistics": {k: (_f(v) if isinstance(v, float) else v)
+                           for k, v in h.stats().items()},
+            "points": [{"id": str(h.id[j]), "source": str(h.source[j]),
+                        "observed_h": _f(h.observed[j]), "adjusted_h": _f(h.adjusted[j]),
+                        "residual_m": _f(h.residual[j]), "sigma_h": _f(h.sigma[j]),
+                        "posterior_sigma_h": _f(h.posterior_sigma[j])}
+                       for j in range(len(h))]}
+    if result.vertical is not None:
+        v = result.vertical
+        out["vertical_check"] = [
+            {"id": str(v.id[j]), "rays": int(v.rays[j]), "e": _f(v.e[j]), "n": _f(v.n[j]),
+             "u": _f(v.u[j]), "predicted_sigma_u": _f(v.sigma_up[j])} for j in range(len(v))]
     if single is not None:
         out["single"] = {"sigma0": _f(single.sigma0), "statistics": _statistics(single)}
     return out
@@ -96,6 +130,8 @@ def _statistics(result: BlockResult) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for kind in ("gcp", "icp"):
         out[kind] = {image: _stats(st) for image, st in result.stats_by_image(kind).items()}
+        out[f"{kind}_by_source"] = {source: _stats(st) for source, st in
+                                    result.stats_by_source(kind).items()}
     out["ictp"] = {f"{a} & {b}": _stats(st) for (a, b), st in result.ictp_by_pair().items()}
     residuals: dict[str, dict[str, Any]] = {}
     for (image, kind), st in image_residuals(result).items():
@@ -103,6 +139,82 @@ def _statistics(result: BlockResult) -> dict[str, Any]:
                                                  for k, v in vars(st).items()}
     out["image_residuals_px"] = residuals
     return out
+
+
+def accuracy_statements(result: BlockResult) -> list[AccuracyStatement]:
+    """:meth:`BlockResult.accuracy_statement <geoblock.adjust.BlockResult.accuracy_statement>`
+    of every image that has ICP measurements, then of the block."""
+    images = [i for i in result.models
+              if np.any((result.check.image == i) & (result.check.kind == "ICP"))]
+    return [*(result.accuracy_statement(i) for i in images), result.accuracy_statement()]
+
+
+def _value(x: float) -> str:
+    return f"{x:.2f}" if math.isfinite(x) else "n/a"
+
+
+def _accuracy_table(result: BlockResult) -> list[str]:
+    rows = accuracy_statements(result)
+    if not rows or rows[-1].n_icp == 0:
+        return ["## Accuracy statements (NSSDA)", "",
+                "No ICP: the accuracy cannot be stated empirically (add independent check "
+                "points).", ""]
+    lines = ["## Accuracy statements (NSSDA)", "",
+             "Metres. **Predicted**: from the posterior covariance (each ICP measurement's "
+             "east/north covariance, parameters, image measurement and survey errors; the "
+             "radius holding 90 % / 95 % of the population of errors). **Empirical**: the "
+             "90th / 95th percentile of the ICPs' radial errors; **NSSDA**: 2.1460 / 2.4477 x "
+             "RMSE_r / sqrt(2) (FGDC-STD-007.3-1998). LE90: ICPs measured in two images or "
+             "more, intersected through the adjusted models; predicted by first-order "
+             "propagation of the image noise and the parameters' posterior covariance.", "",
+             "| image | n ICP | CE90 predicted | CE90 empirical (percentile) | CE90 NSSDA | "
+             "CE95 predicted | CE95 empirical | n LE | LE90 predicted | LE90 empirical |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    notes = []
+    for st in rows:
+        label = "**block**" if st.image is None else st.image
+        lines.append(f"| {label} | {st.n_icp} | {_value(st.ce90_predicted)} | "
+                     f"{_value(st.ce90_empirical)} | {_value(st.ce90_nssda)} | "
+                     f"{_value(st.ce95_predicted)} | {_value(st.ce95_empirical)} | {st.n_le} | "
+                     f"{_value(st.le90_predicted)} | {_value(st.le90_empirical)} |")
+        if st.reason:
+            notes.append(f"- {'block' if st.image is None else st.image}: {st.reason}")
+    return lines + [""] + notes + ([""] if notes else [])
+
+
+def _source_tables(result: BlockResult) -> list[str]:
+    lines: list[str] = []
+    for kind in ("gcp", "icp"):
+        rows = result.stats_by_source(kind)
+        if rows and set(rows) != {"survey"}:
+            lines += [f"**{kind.upper()}s by source** (reference control apart from surveyed "
+                      "points)", "", *_table(rows, "source"), ""]
+    if result.shifts:
+        lines += ["## Common error of each control source", "",
+                  "The error shared by all control points of a source (a reference "
+                  "orthoimage's misregistration), estimated as a translation along local east, "
+                  "north and up at the source's centroid (metres; its a-priori sigma from the "
+                  "ground file's sigma_shift_e/n/h).", "",
+                  "| source | solution | points | shift E | shift N | shift H | sigma E | "
+                  "sigma N | sigma H | prior sigma E/N/H |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+        for sh in result.shifts.values():
+            v, sg, ps = sh.values, sh.sigmas, sh.prior_sigmas
+            lines.append(f"| {sh.source} | {sh.solution} | {sh.n_points} | {v[0]:.3f} | "
+                         f"{v[1]:.3f} | {v[2]:.3f} | {sg[0]:.3f} | {sg[1]:.3f} | {sg[2]:.3f} | "
+                         f"{ps[0]:.3g} / {ps[1]:.3g} / {ps[2]:.3g} |")
+        lines.append("")
+    h = result.hcp
+    if h is not None and len(h):
+        st = h.stats()
+        lines += ["## Height control points", "",
+                  "Observed minus adjusted height of the HCPs (tie points whose height is "
+                  "observed), metres.", "",
+                  "| n | RMSE | mean | max | RMS residual / sigma_h |",
+                  "|---:|---:|---:|---:|---:|",
+                  f"| {st['n']} | {st['rmse']:.3f} | {st['mean']:.3f} | {st['max']:.3f} | "
+                  f"{st['rms_normalised']:.3f} |", ""]
+    return lines
 
 
 def image_residuals(result: BlockResult) -> dict[tuple[str, str], ImageResidualStats]:
@@ -270,6 +382,9 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
             lines += [f"ICP RMSE 2D {actual:.2f} m; the posterior covariance predicts "
                       f"{predicted:.2f} m (parameters, image measurement and survey errors).",
                       ""]
+    lines += _source_tables(r)
+    if r.check is not None:
+        lines += _accuracy_table(r)
     pairs = r.ictp_by_pair()
     if pairs:
         lines += ["## Relative accuracy at ICTPs", "",
