@@ -308,3 +308,41 @@ def test_le90_is_not_available_without_multi_image_icps():
     assert st_.n_icp > 0 and np.isfinite(st_.ce90_predicted)
     assert st_.n_le == 0 and np.isnan(st_.le90_predicted) and "LE90 n/a" in st_.reason
     assert r.vertical is None
+
+
+def test_a_vertical_offset_common_to_hcps_is_estimated():
+    # lidar HCPs 5 m too high (common), 0.2 m noise, in a block of four images whose TPs the
+    # DEM (2 m) holds: with sigma_shift_h = 10 m the block estimates the offset (measured
+    # 4.52 +- 0.94 m); without it the HCPs' residuals hide it
+    sb = affine_block((2, 2), gcps=8, icps=0, tps=150, ictps=0, sigma_ground_m=0.05, seed=1,
+                      offnadir_deg=20.0)
+    b = sb.block
+    g = b.ground
+    m = b.measurements
+    assert g is not None
+    pick = np.unique(m.id[m.kind == "tp"])[::15][:8]
+    k = lookup(sb.point_id, pick)
+    h = sb.truth_h[k] + 5.0 + 0.2 * np.random.default_rng(2).normal(size=pick.size)
+
+    def run(shift_h: float):
+        ground = GroundPoints(
+            np.concatenate([g.id, pick]), np.concatenate([g.kind, np.full(pick.size, "hcp")]),
+            np.concatenate([g.lon, np.full(pick.size, np.nan)]),
+            np.concatenate([g.lat, np.full(pick.size, np.nan)]), np.concatenate([g.h, h]),
+            np.concatenate([g.sigma_e, np.zeros(pick.size)]),
+            np.concatenate([g.sigma_n, np.zeros(pick.size)]),
+            np.concatenate([g.sigma_h, np.full(pick.size, 0.2)]),
+            np.concatenate([g.source, np.full(pick.size, "lidar")]), 0.0, 0.0,
+            np.concatenate([np.zeros(len(g)), np.full(pick.size, shift_h)]))
+        meas = ImagePoints(m.id, m.image, m.row, m.col, m.sigma_row, m.sigma_col,
+                           np.where(np.isin(m.id, pick), "hcp", m.kind))
+        return adjust(Block(b.models, meas, ground, b.dem, b.dem_sigma_m))
+
+    plain, shifted = run(0.0), run(10.0)
+    assert plain.shifts == {}
+    sh = shifted.shifts["lidar"]
+    assert sh.values[:2].tolist() == [0.0, 0.0] and sh.n_points == 8
+    assert abs(sh.values[2] - 5.0) < 3 * sh.sigmas[2] and sh.sigmas[2] < 1.5
+    assert shifted.hcp is not None and plain.hcp is not None
+    assert np.mean(shifted.hcp.residual) == pytest.approx(sh.values[2], abs=0.3)
+    assert abs(np.mean(plain.hcp.residual)) < 1.0

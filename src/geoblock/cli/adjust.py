@@ -40,16 +40,18 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
 
     The block file names the images (sensor-model files), the parameter set or image-space
     correction of each (or a method that chooses them: mba, dg, rfm, rpcv0, rpcv1), the point
-    files (ground.csv: id, lon, lat, h, sigma_e, sigma_n, sigma_h, kind gcp|icp; image.csv:
-    id, image, row, col, sigma[, kind gcp|icp|tp|ictp]), the DEM with its accuracy and the
-    engine's options (docs: user-guide/block-adjustment.md). Command-line options override
-    the file's.
+    files (ground.csv: id, lon, lat, h, sigma_e, sigma_n, sigma_h, kind gcp|icp|hcp[, source,
+    sigma_shift_e, sigma_shift_n, sigma_shift_h]; image.csv: id, image, row, col, sigma[, kind
+    gcp|icp|tp|ictp|hcp]), the DEM with its accuracy and the engine's options (docs:
+    user-guide/block-adjustment.md). Command-line options override the file's.
 
     Writes DIR/models/<image>.json (each opens with geoblock.open_model and orthorectifies
     with 'geoblock ortho'), DIR/report.json (per-measurement residuals, redundancy numbers,
     test statistics and blunder flags, per-point ground coordinates and covariances,
     statistics, sigma0, iteration log), DIR/report.md (the papers' tables: GCP/ICP RMSE E/N
-    per image, ICTP relative accuracy per overlap, single versus block) and error-vector
+    per image and per source, ICTP relative accuracy per overlap, single versus block; the
+    common error estimated for each control source; HCP residuals; CE90/CE95/LE90
+    predicted from the posterior beside the empirical figures at the ICPs) and error-vector
     plots as PNG. One progress line per iteration goes to standard error.
 
     \b
