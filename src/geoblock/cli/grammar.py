@@ -45,6 +45,12 @@ OPTIONS: dict[str, str] = {
     "--overwrite": "outputs that exist already may be replaced",
     "--json": "print JSON instead of text",
     "--diagnostics": "a CSV of every candidate, kept or rejected, and why",
+    "--ground-output": "a CSV of the ground rows of the control points measured",
+    "--reference-diagnostics": "a CSV of every reference candidate, kept or rejected, and why",
+    # reference orthoimage
+    "--reference": "a georeferenced orthoimage ground control is measured on",
+    "--reference-accuracy": "the reference orthoimage's absolute accuracy, CE90, metres",
+    "--reference-band": "the band of the reference orthoimage matched, 1-based",
     "--contribution": "a raster of the index of the ortho each mosaic pixel came from",
     "--write": "also write the model as FORMAT:PATH (a plugin's writer)",
     "--format": "the file format of OUT",

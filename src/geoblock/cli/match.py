@@ -9,8 +9,8 @@ import click
 from geoblock.cli.options import (
     check_outputs,
     dem_options,
-    force_opt,
     deprecated_aliases,
+    force_opt,
     no_crop_opt,
     open_dem_arg,
     output_opt,
@@ -79,6 +79,28 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               "points).")
 @click.option("--id-prefix", default="tp", show_default=True, metavar="TEXT",
               help="Tie-point ids are TEXT00000, TEXT00001, ...")
+@click.option("--reference", "reference", metavar="ORTHO", default=None,
+              help="Also measure ground control points on this reference orthoimage (any "
+              "georeferenced raster: a national ortho, Sentinel-2's GRI, an earlier adjusted "
+              "mosaic): each image is warped onto its grid through its model and the DEM, "
+              "matched by correlation, and each match becomes a GCP (kind gcp, source "
+              "reference:<file name>). Default: the block file's [reference].")
+@click.option("--reference-accuracy", "reference_accuracy", type=float, metavar="CE90_M",
+              default=None, callback=positive_float,
+              help="The reference's absolute accuracy, CE90 in metres: every control point is "
+              "weighted by it. Required with --reference unless the block file's "
+              "[reference] table gives accuracy_ce90_m.")
+@click.option("--reference-band", type=click.IntRange(min=1), default=None, metavar="N",
+              help="Band of the reference matched (1-based). Default the block file's "
+              "reference.band, else 1.")
+@click.option("--ground-output", metavar="CSV", default=None,
+              help="Where the reference control's ground rows go (id, kind, source, lon, lat, "
+              "h, sigma_e, sigma_n, sigma_h); their image rows go to --output with the tie "
+              "points. Default with BLOCK.toml its points.ground; required with IMAGEs.")
+@click.option("--reference-diagnostics", metavar="CSV", default=None,
+              help="Also write every reference candidate: image, reference row/col, offset "
+              "(warped image minus reference, reference pixels), correlation and status "
+              "(kept, nodata, correlation, offset).")
 @click.option("--diagnostics", metavar="CSV", default=None,
               help="Also write every candidate match: positions, the models' prediction, "
               "offset, ratio, correlation, residuals across/along the epipolar direction and "
@@ -89,7 +111,10 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
           dem_sigma: float | None, no_crop: bool, force: bool,
           search_px: float | None, max_keypoints: int, contrast_threshold: float, ratio: float,
           min_score: float, order: int, k_sigma: float, sigma_px: float | None,
-          ictp_share: float, id_prefix: str, diagnostics: str | None, overwrite: bool) -> None:
+          ictp_share: float, id_prefix: str, reference: str | None,
+          reference_accuracy: float | None, reference_band: int | None,
+          ground_output: str | None, reference_diagnostics: str | None,
+          diagnostics: str | None, overwrite: bool) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
     image-measurement CSV 'geoblock adjust' reads: id, image, row, col, sigma, kind (tp).
 
@@ -113,11 +138,21 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
     A summary line (keypoints, candidates, kept, rejections per test, matches per second)
     goes to standard error.
 
+    With --reference (or a block file's [reference] table), every image is also matched
+    against the reference orthoimage at the reference's resolution: ground control points
+    whose ground comes from the reference (height from the DEM) and whose sigmas come from
+    the reference's accuracy (--reference-accuracy, CE90 metres) and the DEM's (--dem-sigma);
+    their ground rows go to --ground-output, their image rows (kind gcp) to --output with the
+    tie points. One IMAGE is enough then (no tie points).
+
     \b
     Examples:
       geoblock match left.tif right.tif --model left.geom --model right.geom \\
           --dem N44E005.hgt --dem-vertical geoid -o tp.csv
       geoblock match teo/block.toml -o teo/points/tp.csv --diagnostics teo/match.csv
+      geoblock match right.tif --model right.geom --dem N44E005.hgt --dem-vertical geoid \\
+          --reference left_ortho.tif --reference-accuracy 8.5 -o image.csv \\
+          --ground-output ground.csv
     """
     from pathlib import Path
 
@@ -127,9 +162,29 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         click.echo(message, err=True)
 
     block_mode = len(inputs) == 1 and Path(inputs[0]).suffix.lower() == ".toml"
-    check_outputs({"--output": output, "--diagnostics": diagnostics},
+    spec = None
+    if block_mode:
+        for name, given in (("--model", models), ("--image-id", ids), ("--no-crop", no_crop),
+                            ("--force", force)):
+            if given:
+                raise click.UsageError(f"{name} applies to IMAGEs, not to a block file (the "
+                                       "block file names each image's model and raster)")
+        from geoblock.io.blocks import read_block
+
+        spec = read_block(inputs[0])
+    ref = _reference(spec, inputs[0] if block_mode else None, reference, reference_accuracy,
+                     reference_band, ground_output)
+    if ref is not None:
+        ground_output = ref["ground_output"]
+    if reference_diagnostics is not None and ref is None:
+        raise click.UsageError("--reference-diagnostics applies with --reference (or a block "
+                               "file's [reference] table)")
+    check_outputs({"--output": output, "--diagnostics": diagnostics,
+                   "--ground-output": ground_output,
+                   "--reference-diagnostics": reference_diagnostics},
                   {"IMAGE" if not block_mode else "BLOCK.toml": inputs, "--model": models,
-                   "--dem": dem_source}, overwrite=overwrite)
+                   "--dem": dem_source, "--reference": None if ref is None else ref["path"]},
+                  overwrite=overwrite)
     options: dict[str, Any] = {
         "search_px": search_px, "max_keypoints": max_keypoints,
         "contrast_threshold": contrast_threshold, "ratio": ratio, "min_score": min_score,
@@ -138,24 +193,49 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         options["dem_sigma_m"] = dem_sigma
     opts = MatchOptions(**options)
     if block_mode:
-        for name, given in (("--model", models), ("--image-id", ids), ("--no-crop", no_crop),
-                            ("--force", force)):
-            if given:
-                raise click.UsageError(f"{name} applies to IMAGEs, not to a block file (the "
-                                       "block file names each image's model and raster)")
+        assert spec is not None
         dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else None
-        result = match_block(inputs[0], dem=dem, options=opts, progress=say)
+        if ref is not None:
+            dem = dem if dem is not None else _block_dem(spec, inputs[0])
+            images = _block_images(spec, inputs[0])
+        result = match_block(spec, dem=dem, options=opts, progress=say) \
+            if len(spec.images) >= 2 or ref is None else None
     else:
-        if len(inputs) < 2:
-            raise click.UsageError("give two or more IMAGEs, or one BLOCK.toml")
+        if len(inputs) < 2 and ref is None:
+            raise click.UsageError("give two or more IMAGEs, or one BLOCK.toml (or one IMAGE "
+                                   "with --reference)")
         if dem_source is None:
             raise click.UsageError("--dem DEM is required with IMAGEs (the terrain the models "
                                    "predict the matches through)")
         images = _images(inputs, models, ids, no_crop, force)
-        result = match_images(images, open_dem_arg(dem_source, dem_vertical, geoid),
-                              options=opts, progress=say)
-    _write(result, output, diagnostics, ictp_share)
-    say(result.summary())
+        dem = open_dem_arg(dem_source, dem_vertical, geoid)
+        result = match_images(images, dem, options=opts, progress=say) \
+            if len(images) >= 2 else None
+    control = None
+    if ref is not None:
+        from geoblock.match.reference import ReferenceOptions, match_reference
+
+        sigma = dem_sigma if dem_sigma is not None else (
+            spec.dem.sigma if spec is not None and spec.dem is not None
+            and spec.dem.sigma is not None else opts.dem_sigma_m)
+        assert dem is not None
+        control = match_reference(images, ref["path"], dem,
+                                  reference_accuracy_ce90_m=ref["accuracy"],
+                                  dem_sigma_m=float(sigma),
+                                  options=ReferenceOptions(band=ref["band"]), progress=say)
+        if result is not None:
+            import numpy as np
+
+            common = np.intersect1d(result.id, control.ground["id"])
+            if common.size:
+                raise click.UsageError(f"tie-point ids {common[:3].tolist()} are also reference "
+                                       "control ids: choose another --id-prefix")
+    _write(result, output, diagnostics, ictp_share, control, ground_output,
+           reference_diagnostics)
+    if result is not None:
+        say(result.summary())
+    if control is not None:
+        say(control.summary())
 
 
 def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...],
@@ -188,9 +268,77 @@ def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...
     return out
 
 
-def _write(result: Any, output: str, diagnostics: str | None, ictp_share: float) -> None:
+def _reference(spec: Any, block: str | None, path: str | None, accuracy: float | None,
+               band: int | None, ground_output: str | None) -> dict[str, Any] | None:
+    """The reference to match (the option's, else the block's), its accuracy, band and the
+    ground output; None without a reference."""
+    table = spec.reference if spec is not None else None
+    if path is None and table is None:
+        for name, given in (("--reference-accuracy", accuracy), ("--reference-band", band),
+                            ("--ground-output", ground_output)):
+            if given is not None:
+                raise click.UsageError(f"{name} applies with --reference (or a block file's "
+                                       "[reference] table)")
+        return None
+    if path is None:
+        assert table is not None
+        path = str(table.path)
+        if accuracy is None:
+            accuracy = table.accuracy_ce90_m
+        if band is None:
+            band = table.band
+    if accuracy is None:
+        where = f" (or accuracy_ce90_m in the [reference] table of {block})" if block else ""
+        raise click.UsageError(
+            f"give the reference's absolute accuracy with --reference-accuracy CE90_M{where}: "
+            "the adjustment weighs every control point by it, and geoblock does not guess it")
+    if ground_output is None:
+        if spec is None:
+            raise click.UsageError("--ground-output CSV is required with --reference and "
+                                   "IMAGEs (the control points' ground rows)")
+        if spec.ground_points is None:
+            raise click.UsageError(f"{block} names no points.ground: give --ground-output CSV "
+                                   "for the reference control's ground rows")
+        ground_output = str(spec.ground_points)
+    return {"path": path, "accuracy": float(accuracy), "band": band or 1,
+            "ground_output": ground_output}
+
+
+def _block_dem(spec: Any, name: str) -> Any:
+    if spec.dem is None:
+        raise click.UsageError(f"{name}: no [dem] table, and no --dem: matching needs the "
+                               "terrain")
+    return spec.dem.to_source(name)
+
+
+def _block_images(spec: Any, name: str) -> list[MatchImage]:
+    from geoblock.errors import BlockFileError
+    from geoblock.match.pipeline import MatchImage
+
+    missing = [f"images[{k}] ({im.id})" for k, im in enumerate(spec.images) if im.raster is None]
+    if missing:
+        raise BlockFileError(f"{name}: {', '.join(missing)} name(s) no 'raster': geoblock "
+                             "match needs each image's pixels (raster = \"image.tif\")")
+    return [MatchImage.from_files(im.id, im.raster, im.model) for im in spec.images]
+
+
+def _write(result: Any, output: str, diagnostics: str | None, ictp_share: float,
+           control: Any = None, ground_output: str | None = None,
+           reference_diagnostics: str | None = None) -> None:
+    import numpy as np
+
     from geoblock.io.points import write_points
 
-    write_points(output, result.to_columns(ictp_share))
-    if diagnostics:
+    columns = result.to_columns(ictp_share) if result is not None else None
+    if control is not None:
+        extra = control.measurements
+        columns = extra if columns is None else {
+            k: np.concatenate([np.asarray(columns[k]), np.asarray(extra[k])]) for k in columns}
+        assert ground_output is not None
+        write_points(ground_output, dict(control.ground))
+    assert columns is not None
+    write_points(output, columns)
+    if diagnostics and result is not None:
         write_points(diagnostics, result.diagnostics())
+    if reference_diagnostics and control is not None:
+        write_points(reference_diagnostics, control.diagnostics())

@@ -22,6 +22,11 @@ relative to the block file's directory. Example::
     geoid = "egm96_15.gtx"    # optional
     sigma = 5.0               # optional: the DEM's accuracy, metres (default 5)
 
+    [reference]               # optional: control from a reference orthoimage (geoblock match)
+    path = "gri.tif"          # a georeferenced ortho (any CRS)
+    accuracy_ce90_m = 8.0     # its absolute accuracy, CE90 metres (or --reference-accuracy)
+    band = 1                  # optional: the band matched (1-based)
+
     [options]                 # the engine's options (ADJUST_OPTIONS), all optional
     dem_control = "observation"   # observation | iterate | none
     robust = "cauchy"             # none | huber | cauchy | snooping
@@ -72,8 +77,8 @@ from geoblock.io.files import write_text
 if TYPE_CHECKING:
     from geoblock.dem.protocol import DemSource
 
-__all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage", "OpenedBlock",
-           "dumps_toml", "open_block", "read_block",
+__all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage",
+           "BlockReference", "OpenedBlock", "dumps_toml", "open_block", "read_block",
            "write_block"]
 
 BLOCK_FORMAT_VERSION = 1
@@ -194,6 +199,27 @@ class BlockDem:
 
 
 @dataclass(frozen=True)
+class BlockReference:
+    """The reference orthoimage of a block: ground control for ``geoblock match``
+    (:func:`geoblock.match.match_reference`).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The reference orthoimage, absolute.
+    accuracy_ce90_m : float or None
+        Its absolute accuracy, circular error at 90 %, metres: the weight of every control
+        point matched on it. None: ``geoblock match --reference-accuracy`` must give it.
+    band : int or None
+        The band matched (1-based); None: the first.
+    """
+
+    path: Path
+    accuracy_ce90_m: float | None = None
+    band: int | None = None
+
+
+@dataclass(frozen=True)
 class Block:
     """A block of images to adjust together, as a block file describes it.
 
@@ -218,6 +244,8 @@ class Block:
         Free label.
     mode : {"block", "single"}
         Adjust all images together (with TPs and the DEM) or each alone with its GCPs.
+    reference : BlockReference or None
+        A reference orthoimage ``geoblock match`` takes ground control from.
     """
 
     images: tuple[BlockImage, ...]
@@ -230,6 +258,7 @@ class Block:
     outputs: Mapping[str, Path] = field(default_factory=dict)
     name: str = ""
     mode: str = "block"
+    reference: BlockReference | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "images", tuple(self.images))
@@ -276,6 +305,17 @@ def _check(block: Block, where: str) -> None:
             math.isfinite(block.dem.sigma) and block.dem.sigma > 0):
         raise BlockFileError(f"{where}: 'dem.sigma' must be a number > 0 (metres), got "
                              f"{block.dem.sigma!r}")
+    ref = block.reference
+    if ref is not None and ref.accuracy_ce90_m is not None and not (
+            isinstance(ref.accuracy_ce90_m, int | float)
+            and not isinstance(ref.accuracy_ce90_m, bool)
+            and math.isfinite(ref.accuracy_ce90_m) and ref.accuracy_ce90_m > 0):
+        raise BlockFileError(f"{where}: 'reference.accuracy_ce90_m' must be a number > 0 "
+                             f"(metres), got {ref.accuracy_ce90_m!r}")
+    if ref is not None and ref.band is not None and not (
+            isinstance(ref.band, int) and not isinstance(ref.band, bool) and ref.band >= 1):
+        raise BlockFileError(f"{where}: 'reference.band' must be an integer >= 1, got "
+                             f"{ref.band!r}")
     if block.dem is not None and block.dem.vertical not in (None, "ellipsoid", "geoid"):
         raise BlockFileError(f"{where}: 'dem.vertical' must be 'ellipsoid' or 'geoid', got "
                              f"{block.dem.vertical!r}")
@@ -407,6 +447,19 @@ def read_block(path: str | os.PathLike[str]) -> Block:
                        None if geoid_text is None else _resolve(base, geoid_text, f"{where}.geoid"),
                        None if sigma is None else float(sigma))
 
+    reference = None
+    ref_raw = _take(data, "reference", dict, name)
+    if ref_raw is not None:
+        ref_raw = dict(ref_raw)
+        where = f"{name}: reference"
+        ref_path = _resolve(base, _take(ref_raw, "path", str, where, required=True),
+                            f"{where}.path")
+        accuracy = _take(ref_raw, "accuracy_ce90_m", (int, float), where)
+        band = _take(ref_raw, "band", int, where)
+        _no_more(ref_raw, where, "path, accuracy_ce90_m, band")
+        reference = BlockReference(ref_path, None if accuracy is None else float(accuracy),
+                                   band)
+
     options = _take(data, "options", dict, name, default={})
     outputs_raw = dict(_take(data, "outputs", dict, name, default={}))
     outputs = {}
@@ -414,10 +467,11 @@ def read_block(path: str | os.PathLike[str]) -> Block:
         if not isinstance(value, str):
             raise BlockFileError(f"{name}: 'outputs.{key}' must be a path (string), got {value!r}")
         outputs[key] = _resolve(base, value, f"{name}: outputs.{key}")
-    _no_more(data, name, "version, name, method, mode, images, points, dem, options, outputs")
+    _no_more(data, name, "version, name, method, mode, images, points, dem, reference, "
+             "options, outputs")
     try:
         return Block(tuple(images), method, paths["ground"], paths["image"], paths["truth"], dem,
-                     options, outputs, label, mode)
+                     options, outputs, label, mode, reference)
     except BlockFileError as exc:
         raise BlockFileError(str(exc).replace("<Block>", name)) from None
 
@@ -460,6 +514,13 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
         if block.dem.sigma is not None:
             dem["sigma"] = block.dem.sigma
         out["dem"] = dem
+    if block.reference is not None:
+        ref: dict[str, Any] = {"path": rel(block.reference.path)}
+        if block.reference.accuracy_ce90_m is not None:
+            ref["accuracy_ce90_m"] = block.reference.accuracy_ce90_m
+        if block.reference.band is not None:
+            ref["band"] = block.reference.band
+        out["reference"] = ref
     if block.options:
         out["options"] = _thaw(block.options)
     if block.outputs:

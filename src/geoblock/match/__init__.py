@@ -13,6 +13,9 @@
 * :func:`least_squares_match` - least-squares matching (Gruen 1985: shift, radiometric gain
   and offset, by Gauss-Newton, with a per-patch :class:`LsmStatus`), the one solver of the
   refinement and of the seam measurement;
+* :func:`match_reference` - ground control points from a reference orthoimage and a DEM
+  (:class:`ReferenceControl`: ground rows of kind ``gcp`` with ``source = reference:<file>``
+  and their image rows; :mod:`geoblock.match.reference`);
 * :func:`seam_shift` - the misregistration of two neighbouring orthos measured on their pixels
   in their overlap (:class:`SeamShift`, :mod:`geoblock.match.seams`; ``geoblock demo``'s
   seams).
@@ -42,6 +45,14 @@ if TYPE_CHECKING:
         match_images,
         write_tie_points,
     )
+    from geoblock.match.reference import (
+        ReferenceControl,
+        ReferenceMatches,
+        ReferenceOptions,
+        ReferenceOrtho,
+        match_reference,
+        reference_sigmas,
+    )
     from geoblock.match.refine import Refined, RefineStatus, refine_matches
     from geoblock.match.seams import SeamShift, seam_shift
 
@@ -70,6 +81,12 @@ _LAZY = {
     "match_block": "geoblock.match.pipeline",
     "match_images": "geoblock.match.pipeline",
     "write_tie_points": "geoblock.match.pipeline",
+    "ReferenceControl": "geoblock.match.reference",
+    "ReferenceMatches": "geoblock.match.reference",
+    "ReferenceOptions": "geoblock.match.reference",
+    "ReferenceOrtho": "geoblock.match.reference",
+    "match_reference": "geoblock.match.reference",
+    "reference_sigmas": "geoblock.match.reference",
     "Refined": "geoblock.match.refine",
     "RefineStatus": "geoblock.match.refine",
     "refine_matches": "geoblock.match.refine",
@@ -93,6 +110,10 @@ __all__ = [
     "Prediction",
     "REJECTIONS",
     "RefineStatus",
+    "ReferenceControl",
+    "ReferenceMatches",
+    "ReferenceOptions",
+    "ReferenceOrtho",
     "Refined",
     "SeamShift",
     "TiePoints",
@@ -104,8 +125,10 @@ __all__ = [
     "local_affine",
     "match_block",
     "match_images",
+    "match_reference",
     "overlap",
     "predict",
+    "reference_sigmas",
     "refine_matches",
     "seam_shift",
     "write_tie_points",
