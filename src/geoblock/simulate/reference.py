@@ -22,8 +22,8 @@ image against it has a known truth:
   :meth:`RenderedReference.true_lonlat` removes the shift from a position read on the reference,
   :meth:`RenderedReference.displaced_lonlat` adds it;
 * optionally **shaded** by a terrain (the same Lambertian hillshade as
-  :func:`~geoblock.simulate.render.render_image`), at the true ground position, so that the
-  reference shows the relief the raw images show.
+  :func:`~geoblock.simulate.render.render_image`), at the true ground position of the
+  pixel's centre, so that the reference shows the relief the raw images show.
 
 Pixel values follow :func:`~geoblock.simulate.render.render_image`: ``1 + value * (top - 1)``
 for ``uint8``/``uint16`` (0 is never used: it is the nodata of the raw images), or the value in
@@ -53,8 +53,8 @@ __all__ = ["RenderedReference", "default_supersample", "render_reference", "shif
 
 _DEG_M = math.radians(1.0) * coords.WGS84_A  # metres per degree of latitude (sphere of radius a)
 #: target spacing of the texture samples inside a pixel, metres (the procedural texture's
-#: finest features: 4 m hedges, 8 m roads, crop rows of 6-20 m period at 2.5 m GSD)
-_SUBSAMPLE_M = 2.5
+#: finest features at its default scale: 4 m hedges, 8 m roads, crop rows of 6-20 m period)
+_SUBSAMPLE_M = 3.5
 _MAX_SUPERSAMPLE = 8
 _DTYPES = ("uint8", "uint16", "float32")
 
@@ -92,7 +92,7 @@ def shift_lonlat(lon: Any, lat: Any, de: float | np.ndarray, dn: float | np.ndar
 
 def default_supersample(gsd_m: float) -> int:
     """Texture samples per pixel side for a pixel of ``gsd_m`` metres: about one every
-    2.5 m, at least 2 and at most 8."""
+    3.5 m, at least 2 and at most 8 (2.5 and 5 m: 2; 10 m: 3; 20 m: 6)."""
     return int(min(_MAX_SUPERSAMPLE, max(2, math.ceil(float(gsd_m) / _SUBSAMPLE_M - 1e-9))))
 
 
@@ -298,26 +298,40 @@ def render_reference(
     dem = terrain.to_dem() if isinstance(terrain, Terrain) else terrain
     rows, cols = grid.shape
     t = grid.transform
-    # sub-cell centres, in pixel units from the pixel's corner: (k + 0.5) / n
-    frac = (np.arange(n_sub, dtype=np.float64) + 0.5) / n_sub
-    sub_x = t.c + t.a * (np.arange(cols, dtype=np.float64)[:, None] + frac).ravel()  # (C n,)
+    # sub-cell centres, in pixels from the pixel's centre: (k + 0.5) / n - 0.5
+    frac = (np.arange(n_sub, dtype=np.float64) + 0.5) / n_sub - 0.5
+    fy, fx = np.meshgrid(frac, frac, indexing="ij")  # (n, n)
     value = np.empty((rows, cols), dtype=np.float64)
     chunk_rows = max(1, int(chunk_samples) // max(1, cols * n_sub * n_sub))
     flat = math.sin(math.radians(sun_elevation_deg))
+    x = t.c + t.a * (np.arange(cols, dtype=np.float64) + 0.5)
     for r0 in range(0, rows, chunk_rows):
         r1 = min(rows, r0 + chunk_rows)
-        sub_y = t.f + t.e * (np.arange(r0, r1, dtype=np.float64)[:, None] + frac).ravel()
-        xx, yy = np.meshgrid(sub_x, sub_y)  # (R n, C n)
-        lon, lat = _to_lonlat(horizontal, xx, yy)
-        # the pixel at P shows the ground at P - shift
-        lon, lat = shift_lonlat(lon, lat, -de, -dn)
-        albedo = np.asarray(texture(lon, lat), dtype=np.float64)
+        # pixel centres of rows r0-1 .. r1 (one more each side for the derivatives), then
+        # the shift: the pixel at P shows the ground at P - shift
+        yy = t.f + t.e * (np.arange(r0 - 1, r1 + 1, dtype=np.float64) + 0.5)
+        lon_c, lat_c = _to_lonlat(horizontal, *np.meshgrid(x, yy))
+        lon_c, lat_c = shift_lonlat(lon_c, lat_c, -de, -dn)
+        # the sub-samples from the centres through the local derivatives per pixel (central
+        # differences of the centres: the CRS's second-order terms over a pixel are
+        # micrometres), instead of projecting every sub-sample
+        d_col = [np.gradient(a, axis=1)[1:-1] if cols > 1 else np.zeros((r1 - r0, 1))
+                 for a in (lon_c, lat_c)]
+        d_row = [0.5 * (a[2:] - a[:-2]) for a in (lon_c, lat_c)]
+        lon0, lat0 = lon_c[1:-1], lat_c[1:-1]  # (R, C)
+        lon = (lon0[:, None, :, None] + d_row[0][:, None, :, None] * fy[None, :, None, :]
+               + d_col[0][:, None, :, None] * fx[None, :, None, :])  # (R, n, C, n)
+        lat = (lat0[:, None, :, None] + d_row[1][:, None, :, None] * fy[None, :, None, :]
+               + d_col[1][:, None, :, None] * fx[None, :, None, :])
+        albedo = np.clip(np.asarray(texture(lon, lat), dtype=np.float64), 0.0, 1.0)
+        mean = albedo.mean(axis=(1, 3))
         if dem is not None:
-            light = ambient + (1.0 - ambient) * _shade(dem, lon, lat, sun_azimuth_deg,
+            # the relief's shading varies over the terrain's posts, not within a pixel: taken
+            # at the pixel's centre
+            light = ambient + (1.0 - ambient) * _shade(dem, lon0, lat0, sun_azimuth_deg,
                                                        sun_elevation_deg) / max(flat, 1e-6)
-            albedo = albedo * light
-        albedo = np.clip(albedo, 0.0, 1.0)
-        value[r0:r1] = albedo.reshape(r1 - r0, n_sub, cols, n_sub).mean(axis=(1, 3))
+            mean = np.clip(mean * light, 0.0, 1.0)
+        value[r0:r1] = mean
     if dtype == "float32":
         pixels = value.astype(np.float32)
     else:
