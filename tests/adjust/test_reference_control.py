@@ -346,3 +346,13 @@ def test_a_vertical_offset_common_to_hcps_is_estimated():
     assert shifted.hcp is not None and plain.hcp is not None
     assert np.mean(shifted.hcp.residual) == pytest.approx(sh.values[2], abs=0.3)
     assert abs(np.mean(plain.hcp.residual)) < 1.0
+
+
+def test_empty_shift_and_source_cells_mean_none(tmp_path):
+    path = tmp_path / "ground.csv"
+    path.write_text("id,lon,lat,h,kind,source,sigma_shift_e,sigma_shift_n,sigma_shift_h\n"
+                    "p1,7.0,44.0,10.0,gcp,,,,\n"
+                    "p2,7.1,44.0,10.0,gcp,reference:r.tif,5,5,\n")
+    g = GroundPoints.from_columns(read_points(path))
+    assert g.source.tolist() == ["survey", "reference:r.tif"]
+    assert g.shift_sigmas.tolist() == [[0.0, 0.0, 0.0], [5.0, 5.0, 0.0]]

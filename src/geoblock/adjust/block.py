@@ -207,6 +207,9 @@ def adjust(
             notes.append("no DEM: the TP heights are not controlled")
     else:
         groups = [(i,) for i in ids]
+        if np.any(block.measurements.kind == "hcp"):
+            notes.append("single mode: height control points (tie points with a height) are "
+                         "not used")
     solutions: list[tuple[_Engine, _Solution, _Statistics]] = []
     for group in groups:
         engine = _Engine(block, group, use_tps=mode == "block",

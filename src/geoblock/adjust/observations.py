@@ -316,7 +316,8 @@ class GroundPoints:
 
         ``id, h`` are required, and ``lon, lat`` unless every row is an ``hcp`` (absent:
         NaN); ``sigma_e, sigma_n, sigma_h`` and ``sigma_shift_e, sigma_shift_n,
-        sigma_shift_h`` default to 0, ``source`` to ``"survey"`` and ``kind`` to ``kind``.
+        sigma_shift_h`` default to 0 (an empty ``sigma_shift_*`` cell too), ``source`` to
+        ``"survey"`` (an empty cell too) and ``kind`` to ``kind``.
         (``source`` here is the file's name in messages; the column is ``columns["source"]``.)
         """
         missing = [c for c in ("id", "h") if c not in columns]
@@ -328,13 +329,16 @@ class GroundPoints:
         if missing:
             raise ObservationError(f"{source}: missing column(s) {missing}")
         nan = np.full(n, np.nan)
+        # an empty sigma_shift cell is "no common error", as an absent column
+        shift = {f"sigma_shift_{a}": np.nan_to_num(np.asarray(columns[f"sigma_shift_{a}"],
+                                                              dtype=np.float64), nan=0.0)
+                 if f"sigma_shift_{a}" in columns else 0.0 for a in "enh"}
         try:
             return cls(columns["id"], columns.get("kind", np.full(n, kind)),
                        columns.get("lon", nan), columns.get("lat", nan), columns["h"],
                        columns.get("sigma_e", 0.0), columns.get("sigma_n", 0.0),
                        columns.get("sigma_h", 0.0), columns.get("source", DEFAULT_SOURCE),
-                       columns.get("sigma_shift_e", 0.0), columns.get("sigma_shift_n", 0.0),
-                       columns.get("sigma_shift_h", 0.0))
+                       shift["sigma_shift_e"], shift["sigma_shift_n"], shift["sigma_shift_h"])
         except ObservationError as exc:
             raise ObservationError(str(exc).replace("ground points", source, 1)) from None
 

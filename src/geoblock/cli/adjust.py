@@ -62,10 +62,8 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
     from pathlib import Path
 
     from geoblock.adjust.block import adjust as run
-    from geoblock.io.blocks import open_block
+    from geoblock.io.blocks import open_block, read_block
     from geoblock.report.adjustment import check_output_directory, write_result
-
-    from geoblock.io.blocks import read_block
 
     spec = read_block(block_file)
     out: str | Path
