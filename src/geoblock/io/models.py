@@ -16,9 +16,15 @@ from geoblock.io.vsi import VsiPath, as_path
 from geoblock.models.protocol import SensorModel
 
 if TYPE_CHECKING:  # pragma: no cover
+    from geoblock.models.uncertainty import ModelPosterior
     from geoblock.plugins import HookFailure
 
-__all__ = ["open_model", "read_model_json", "write_model", "write_model_json"]
+__all__ = ["POSTERIOR_KEY", "open_model", "read_model_json", "read_model_posterior",
+           "write_model", "write_model_json"]
+
+#: The top-level key of a model JSON that holds the model's posterior covariance
+#: (:class:`~geoblock.models.uncertainty.ModelPosterior`); never handed to ``from_dict``.
+POSTERIOR_KEY = "posterior"
 
 _FORMATS_BY_SUFFIX = {".json": "json"}
 
@@ -104,7 +110,8 @@ def _failed(failures: list[HookFailure]) -> str:
 
 
 def write_model(
-    model: SensorModel, path: str | os.PathLike[str], format: str | None = None, **options: Any
+    model: SensorModel, path: str | os.PathLike[str], format: str | None = None, *,
+    posterior: ModelPosterior | None = None, **options: Any
 ) -> Path:
     """Write a sensor model through the plugins' ``geoblock_write_sensor_model`` hook.
 
@@ -116,6 +123,13 @@ def write_model(
     format : str, optional
         ``"json"`` (geoblock model JSON, any model) or a format a plugin writes (for example
         ``"rpc-txt"``); inferred from the suffix when omitted (``.json`` -> ``"json"``).
+    posterior : ModelPosterior, optional
+        The posterior covariance of the model's adjusted parameters (a block adjustment's,
+        :meth:`ModelPosterior.from_block_result
+        <geoblock.models.uncertainty.ModelPosterior.from_block_result>`), stored beside the
+        model under the top-level key ``"posterior"`` of geoblock model JSON
+        (:func:`write_model_json`; only that format holds it). ``geoblock ortho
+        --accuracy-layer`` propagates it.
     **options
         Writer options, passed to the plugins. A writer failing with anything but a
         :class:`~geoblock.errors.GeoblockError` is skipped with a
@@ -125,6 +139,13 @@ def write_model(
     -------
     pathlib.Path
         The path written.
+
+    Raises
+    ------
+    UnsupportedFormatError
+        No writer for the format; a ``posterior`` with a format other than ``"json"``.
+    NoAccuracyError
+        A ``posterior`` naming parameters the model does not have.
     """
     from geoblock.plugins import call_firstresult, get_plugin_manager
 
@@ -140,6 +161,12 @@ def write_model(
         raise GeoblockIOError(
             f"cannot write {str(path)!r}: directory {str(path.parent)!r} does not exist"
         )
+    if posterior is not None:  # geoblock's own JSON holds it, whichever plugin made the model
+        if format != "json":
+            raise UnsupportedFormatError(
+                f"{str(path)!r}: a posterior covariance is stored in geoblock model JSON "
+                f"only, not as {format!r}")
+        return write_model_json(model, path, posterior=posterior)
     pm = get_plugin_manager()
     written, failures = call_firstresult(
         pm, "geoblock_write_sensor_model", model=model, path=path, format=format, options=options
@@ -159,7 +186,8 @@ def read_model_json(path: str | os.PathLike[str]) -> dict[str, Any] | None:
     A model JSON file has the suffix ``.json`` (any case) and holds a JSON object with a string
     ``"model"`` and a ``"schema_version"``. Anything else (a directory, another suffix, text
     that is not UTF-8 or not JSON, another JSON document) gives None, so that other readers can
-    be asked.
+    be asked. A posterior covariance stored beside the model (top-level ``"posterior"``,
+    :func:`read_model_posterior`) is not part of the mapping: ``from_dict`` never sees it.
 
     Raises
     ------
@@ -178,23 +206,79 @@ def read_model_json(path: str | os.PathLike[str]) -> dict[str, Any] | None:
     except (UnicodeDecodeError, json.JSONDecodeError):
         return None
     if isinstance(data, dict) and isinstance(data.get("model"), str) and "schema_version" in data:
+        data.pop(POSTERIOR_KEY, None)
         return data
     return None
 
 
-def write_model_json(model: SensorModel, path: str | os.PathLike[str]) -> Path:
+def read_model_posterior(path: str | os.PathLike[str]) -> ModelPosterior | None:
+    """The posterior covariance stored in a geoblock model JSON, or None.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A model file. Anything that is not geoblock model JSON (vendor metadata, a JSON
+        without the ``"posterior"`` key) gives None.
+
+    Returns
+    -------
+    ModelPosterior or None
+
+    Raises
+    ------
+    ModelFormatError
+        The ``"posterior"`` entry is malformed (names the file and the field).
+    """
+    from geoblock.errors import SerializationError
+    from geoblock.models.uncertainty import ModelPosterior
+
+    path = as_path(path)
+    if path.suffix.lower() != ".json" or path.is_dir() or not path.is_file():
+        return None
+    try:
+        data = json.loads(read_bytes(path).decode("utf-8-sig"))
+    except (UnicodeDecodeError, json.JSONDecodeError, GeoblockIOError):
+        return None
+    if not (isinstance(data, dict) and isinstance(data.get("model"), str)
+            and POSTERIOR_KEY in data):
+        return None
+    try:
+        return ModelPosterior.from_dict(data[POSTERIOR_KEY])
+    except SerializationError as exc:
+        raise ModelFormatError(f"{path}: {exc}") from exc
+
+
+def write_model_json(model: SensorModel, path: str | os.PathLike[str], *,
+                     posterior: ModelPosterior | None = None) -> Path:
     """Write ``model.to_dict()`` as geoblock model JSON (sorted keys, atomically).
+
+    Parameters
+    ----------
+    model : SensorModel
+    path : str or path-like
+    posterior : ModelPosterior, optional
+        Stored under the top-level key ``"posterior"`` (:func:`read_model_posterior`); its
+        names must be parameters of ``model``. Without it the file is exactly
+        ``to_dict()``.
 
     Raises
     ------
     ModelFormatError
         ``to_dict()`` holds something JSON cannot represent (NaN, infinity, an object); the
         message names the file and the model.
+    NoAccuracyError
+        ``posterior`` names parameters ``model`` does not have.
     GeoblockIOError
         The file cannot be written.
     """
+    data = model.to_dict()
+    if posterior is not None:
+        from geoblock.models.uncertainty import model_accuracy
+
+        model_accuracy(model, posterior, where=str(path))  # its names are the model's
+        data = {**data, POSTERIOR_KEY: posterior.to_dict()}
     try:
-        text = json.dumps(model.to_dict(), indent=1, sort_keys=True, allow_nan=False)
+        text = json.dumps(data, indent=1, sort_keys=True, allow_nan=False)
     except (TypeError, ValueError) as exc:
         raise ModelFormatError(
             f"{path}: model {model.name!r} is not JSON-safe (to_dict() holds {exc})"
