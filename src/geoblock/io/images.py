@@ -22,7 +22,7 @@ import re
 import sys
 import warnings
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
@@ -688,6 +688,9 @@ def write_ortho(
     in_flight: int | None = None,
     progress: bool = False,
     empty: str = "error",
+    tags: Mapping[str, str] | None = None,
+    band_descriptions: Sequence[str] | None = None,
+    units: str | None = None,
     **creation_options: Any,
 ) -> Path:
     """Compute a ``(band, y, x)`` DataArray and write it as a tiled GeoTIFF or a COG, atomically.
@@ -736,6 +739,13 @@ def write_ortho(
         under ``path``; ``"warn"`` writes the file and warns
         (:class:`~geoblock.errors.EmptyOutputWarning`); ``"ignore"`` writes it silently.
         Without a nodata value every pixel of an integer array is valid.
+    tags : mapping of str to str, optional
+        Dataset metadata items (``gdalinfo``'s Metadata), e.g. an accuracy layer's
+        :func:`~geoblock.ortho.accuracy.accuracy_tags`.
+    band_descriptions : sequence of str, optional
+        One description per band (``gdalinfo``'s ``Description``).
+    units : str, optional
+        The unit of every band's values (GDAL's unit type, e.g. ``"m"``).
     **creation_options
         More GDAL creation options (``gdal_translate -co`` / ``gdalwarp -co``), keys in any
         case: ``PREDICTOR=2``, ``NUM_THREADS=ALL_CPUS``, ``BIGTIFF=YES``, ``BLOCKXSIZE``...
@@ -769,13 +779,29 @@ def write_ortho(
             _write_ortho(data, path, tmp, driver=driver, blocksize=blocksize,
                          compress=compress, level=level, nodata=nodata, scheduler=scheduler,
                          in_flight=in_flight, progress=progress, empty=empty,
-                         creation_options=creation_options)
+                         creation_options=creation_options,
+                         describe=(tags, band_descriptions, units))
     except GeoblockIOError as exc:
         inner = exc.__cause__
         if isinstance(inner, GeoblockIOError):  # an input's error (a source image): as it is
             raise inner from inner.__cause__
         raise
     return path
+
+
+def _describe(dst: Any, bands: int, tags: Mapping[str, str] | None,
+              descriptions: Sequence[str] | None, units: str | None) -> None:
+    """Metadata items, band descriptions and units of a dataset open for writing."""
+    if tags:
+        dst.update_tags(**{str(k): str(v) for k, v in tags.items()})
+    if descriptions is not None:
+        if len(descriptions) != bands:
+            raise ValueError(f"write_ortho: {len(descriptions)} band descriptions for "
+                             f"{bands} band(s)")
+        for i, text in enumerate(descriptions, start=1):
+            dst.set_band_description(i, str(text))
+    if units is not None:
+        dst.units = (str(units),) * bands
 
 
 def _is_job(data: Any) -> bool:
@@ -821,7 +847,9 @@ def _dask_blocks(data: Any, nodata: float | None, scheduler: Any, in_flight: int
 def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: int,
                  compress: str | None, level: int | None, nodata: float | None, scheduler: Any,
                  in_flight: int | None, progress: bool, empty: str,
-                 creation_options: dict[str, Any]) -> None:
+                 creation_options: dict[str, Any],
+                 describe: tuple[Mapping[str, str] | None, Sequence[str] | None,
+                                 str | None] = (None, None, None)) -> None:
     """:func:`write_ortho`'s work: the file written to ``tmp`` (the COG through a second
     temporary GeoTIFF beside it)."""
     import rasterio
@@ -886,6 +914,7 @@ def _write_ortho(data: Any, path: Path, tmp: Path, *, driver: str, blocksize: in
                     any_valid = _has_valid(block, valid_nodata)
                 strips.add(r0, c0, block)
             strips.close()
+            _describe(dst, bands, *describe)
         if not any_valid:
             message = (f"{path}: no valid pixel to write: all {rows} x {cols} pixels are nodata "
                        f"({valid_nodata if valid_nodata is not None else 'NaN'})")

@@ -28,15 +28,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
 from geoblock._array import finite_bounds
 from geoblock.dem.intersect import as_dem_source
+from geoblock.ortho._dataarrays import _coords
 from geoblock.ortho.kernels import KERNEL_RADIUS, cast, resample_cast
 from geoblock.ortho.lattice import BLOCK_PX, source_coordinates
-from geoblock.pixels import pixel_centres
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from geoblock.io.dem import EngineDem
     from geoblock.io.images import ImageLike, OpenedImage
     from geoblock.models.protocol import SensorModel
+    from geoblock.models.uncertainty import ModelPosterior
     from geoblock.ortho.grid import OutputGrid
 
 __all__ = ["OrthoJob", "ortho_chunk", "ortho_job", "orthorectify"]
@@ -118,17 +119,6 @@ def ortho_chunk(
     col -= wc0
     out, _ = resample_cast(src, row, col, kernel, dtype, fill, nodata=image.nodata)
     return out
-
-
-def _coords(grid: OutputGrid, bands: int, fill: Any) -> dict[str, Any]:
-    import xarray as xr
-
-    t = grid.transform
-    x, y = pixel_centres(t, grid.shape)
-    wkt = grid.crs.to_wkt() if hasattr(grid.crs, "to_wkt") else str(grid.crs)
-    gt = " ".join(repr(float(v)) for v in (t.c, t.a, t.b, t.f, t.d, t.e))
-    spatial_ref = xr.DataArray(0, attrs={"crs_wkt": wkt, "spatial_ref": wkt, "GeoTransform": gt})
-    return {"band": np.arange(1, bands + 1), "y": y, "x": x, "spatial_ref": spatial_ref}
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,6 +202,28 @@ class OrthoJob:
         )
 
 
+@overload
+def orthorectify(
+    image: ImageLike, model: SensorModel, dem: EngineDem, grid: OutputGrid | None = None, *,
+    kernel: str = ..., tolerance_px: float = ..., chunks: int | tuple[int, int] = ...,
+    nodata: float | None = ..., block_px: int = ...,
+    crop_offset: tuple[float, float] | None = ..., crop: bool = ...,
+    accuracy: Literal[False] = ..., dem_sigma: float | None = ...,
+    posterior: ModelPosterior | None = ...,
+) -> xr.DataArray: ...
+
+
+@overload
+def orthorectify(
+    image: ImageLike, model: SensorModel, dem: EngineDem, grid: OutputGrid | None = None, *,
+    kernel: str = ..., tolerance_px: float = ..., chunks: int | tuple[int, int] = ...,
+    nodata: float | None = ..., block_px: int = ...,
+    crop_offset: tuple[float, float] | None = ..., crop: bool = ...,
+    accuracy: Literal[True], dem_sigma: float | None = ...,
+    posterior: ModelPosterior | None = ...,
+) -> tuple[xr.DataArray, xr.DataArray]: ...
+
+
 def orthorectify(
     image: ImageLike,
     model: SensorModel,
@@ -225,7 +237,10 @@ def orthorectify(
     block_px: int = BLOCK_PX,
     crop_offset: tuple[float, float] | None = None,
     crop: bool = True,
-) -> xr.DataArray:
+    accuracy: bool = False,
+    dem_sigma: float | None = None,
+    posterior: ModelPosterior | None = None,
+) -> xr.DataArray | tuple[xr.DataArray, xr.DataArray]:
     """Orthorectify an image: a lazy ``(band, y, x)`` DataArray on an output grid.
 
     Building the result computes nothing (the default grid aside, which projects the scene
@@ -267,6 +282,15 @@ def orthorectify(
     crop : bool
         False: use ``model`` as it is, image pixel ``(r, c)`` being model pixel ``(r, c)``
         (no crop offset, no shape check; e.g. a model already reconciled with the image).
+    accuracy : bool
+        Also return the ortho's accuracy layer
+        (:func:`~geoblock.ortho.accuracy.accuracy_layer`: the predicted horizontal error of
+        every pixel, metres, NaN where the ortho has no data).
+    dem_sigma : float, optional
+        The DEM heights' standard deviation, metres; required with ``accuracy=True``.
+    posterior : ModelPosterior, optional
+        The model's posterior covariance (:func:`geoblock.io.read_model_posterior`) for the
+        accuracy layer; default the model's a-priori statement.
 
     Returns
     -------
@@ -274,6 +298,7 @@ def orthorectify(
         Dask-backed, of the image's dtype. Coordinates ``band`` (1..n), ``y`` and ``x``
         (pixel centres, CRS units) and ``spatial_ref`` (attributes ``crs_wkt`` and
         ``GeoTransform``, as rioxarray reads them); ``attrs["_FillValue"]`` is ``nodata``.
+        With ``accuracy=True``, the pair ``(ortho, accuracy_layer)``.
 
     Raises
     ------
@@ -283,10 +308,25 @@ def orthorectify(
         The image or the DEM cannot be opened.
     CropError
         The image and the model do not fit (shapes, crop offset).
+    NoAccuracyError
+        ``accuracy=True`` and the model states no accuracy.
+    ValueError
+        ``accuracy=True`` without a ``dem_sigma``.
     """
-    return ortho_job(image, model, dem, grid, kernel=kernel, tolerance_px=tolerance_px,
-                     chunks=chunks, nodata=nodata, block_px=block_px, crop_offset=crop_offset,
-                     crop=crop).to_dataarray()
+    job = ortho_job(image, model, dem, grid, kernel=kernel, tolerance_px=tolerance_px,
+                    chunks=chunks, nodata=nodata, block_px=block_px, crop_offset=crop_offset,
+                    crop=crop)
+    ortho = job.to_dataarray()
+    if not accuracy:
+        return ortho
+    from geoblock.ortho.accuracy import accuracy_layer
+
+    if dem_sigma is None:
+        raise ValueError("orthorectify: accuracy=True needs dem_sigma= (the DEM heights' "
+                         "standard deviation, metres)")
+    layer = accuracy_layer(job.model, job.dem, job.grid, dem_sigma=dem_sigma,
+                           posterior=posterior, ortho=ortho, chunks=chunks, block_px=block_px)
+    return ortho, layer
 
 
 def ortho_job(

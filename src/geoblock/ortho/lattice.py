@@ -613,6 +613,29 @@ def source_coordinates(
     if not tolerance_px >= 0:
         raise ValueError(f"source_coordinates: tolerance_px must be >= 0, got {tolerance_px}")
     crs, transform, shape = _grid_parts(grid)
+    ctx = _Context(model, dem, crs, transform, shape, info)
+    return _lattice_fields(ctx, tolerance_px=tolerance_px, check_points=check_points, seed=seed,
+                          window=window, block_px=block_px)
+
+
+def _lattice_fields(
+    ctx: _Context,
+    *,
+    tolerance_px: float,
+    check_points: int = 16,
+    seed: int = 0,
+    window: tuple[slice, slice] | None = None,
+    block_px: int = BLOCK_PX,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`source_coordinates` for any pair of smooth fields of ``(lon, lat, h)``.
+
+    ``ctx.project(lon, lat, h) -> (a, b)`` gives the two fields (NaN where undefined); they
+    are interpolated on the lattice and refined until ``hypot(da, db)`` at the check points is
+    below ``SAFETY * tolerance_px`` (in the fields' units), exactly as the image coordinates
+    are. The accuracy layer (:mod:`geoblock.ortho.accuracy`) passes a context whose fields are
+    the logarithm of the predicted error (a relative tolerance) and 0.
+    """
+    shape = ctx.shape
     rs, cs = window if window is not None else (None, None)
     r0, r1 = _slice_bounds(rs, shape[0])
     c0, c1 = _slice_bounds(cs, shape[1])
@@ -621,7 +644,6 @@ def source_coordinates(
     out_c = np.empty((r1 - r0, c1 - c0))
     if out_r.size == 0:
         return out_r, out_c, np.zeros(out_r.shape, bool)
-    ctx = _Context(model, dem, crs, transform, shape, info)
     B = int(block_px)
     # Per row of blocks: each block takes its decision; lattice blocks then go strip by strip
     # (STRIP_ROWS rows: the strip's lon/lat, heights and coordinates stay in the CPU cache),

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from geoblock.errors import MosaicError  # defined there; importable from here as before
+from geoblock.ortho._dataarrays import _coords, _fill_of, _grid_of, _valid
 
 if TYPE_CHECKING:
     import dask.array as da
@@ -66,39 +67,6 @@ _RES_RTOL = 1e-9
 
 
 # ---------------------------------------------------------------------- inputs
-def _grid_of(data: xr.DataArray, index: int) -> OutputGrid:
-    """The :class:`OutputGrid` of a ``(band, y, x)`` DataArray, from its ``spatial_ref``."""
-    import pyproj
-    from affine import Affine
-
-    from geoblock.ortho.grid import OutputGrid
-
-    if tuple(data.dims) != ("band", "y", "x"):
-        raise MosaicError(f"mosaic: source {index + 1} must have dims ('band', 'y', 'x'), "
-                          f"got {tuple(data.dims)}")
-    ref = data.coords.get("spatial_ref")
-    wkt = gt = None
-    if ref is not None:
-        wkt = ref.attrs.get("crs_wkt") or ref.attrs.get("spatial_ref")
-        gt = ref.attrs.get("GeoTransform")
-    if not wkt or gt is None:
-        raise MosaicError(f"mosaic: source {index + 1} is not georeferenced (no spatial_ref "
-                          "coordinate with crs_wkt and GeoTransform)")
-    c, a, b, f, d, e = (float(v) for v in str(gt).split())
-    try:
-        return OutputGrid(pyproj.CRS.from_wkt(wkt), Affine(a, b, c, d, e, f),
-                          (int(data.sizes["y"]), int(data.sizes["x"])))
-    except ValueError as exc:
-        raise MosaicError(f"mosaic: source {index + 1}: {exc}") from exc
-
-
-def _fill_of(data: xr.DataArray) -> float | None:
-    fill = data.attrs.get("_FillValue", data.encoding.get("_FillValue"))
-    if fill is None and np.dtype(data.dtype).kind == "f":
-        return float("nan")
-    return None if fill is None else float(fill)
-
-
 def _offset(grid: OutputGrid, ref: OutputGrid, index: int) -> tuple[int, int]:
     """Integer ``(row, col)`` of ``grid``'s first pixel on ``ref``; raises unless aligned."""
     if not grid.crs == ref.crs:
@@ -153,18 +121,6 @@ def _chunk_tuple(n: int, size: int) -> tuple[int, ...]:
 
 
 # ---------------------------------------------------------------------- per-source arrays
-def _valid(array: da.Array, fill: float | None) -> da.Array:
-    """``(y, x)`` bool dask array: no band is ``fill`` or NaN."""
-    import dask.array as da
-
-    bad = da.zeros(array.shape[1:], dtype=bool, chunks=array.chunks[1:])
-    if np.dtype(array.dtype).kind == "f":
-        bad = bad | da.isnan(array).any(axis=0)
-    if fill is not None and not math.isnan(fill):
-        bad = bad | (array == fill).any(axis=0)
-    return ~bad
-
-
 def _place(array: da.Array, offset: tuple[int, int], shape: tuple[int, int], pad: int,
            value: float | bool) -> da.Array:
     """``array`` (..., h, w) placed at ``offset`` on a ``shape`` grid grown by ``pad`` pixels
@@ -229,6 +185,7 @@ def mosaic(
     chunks: int | tuple[int, int] | None = None,
     kernel: str = "bilinear",
     tolerance_px: float = 0.01,
+    accuracy: Sequence[xr.DataArray] | None = None,
 ) -> xr.Dataset:
     """Mosaic orthoimages onto one grid: priority or feathering, and a contribution band.
 
@@ -269,6 +226,16 @@ def mosaic(
         Resampling kernel of the ``(image, model)`` pairs.
     tolerance_px : float
         Lattice tolerance of the ``(image, model)`` pairs, source pixels.
+    accuracy : sequence of xarray.DataArray, optional
+        One accuracy layer per source (:func:`~geoblock.ortho.accuracy.accuracy_layer`, or
+        :func:`open_ortho` of the ``*_accuracy.tif`` beside an ortho): ``(band, y, x)`` with
+        one band, metres, each on its source's grid. The mosaic then has an ``accuracy``
+        variable made with the same selection: ``priority`` takes the winning source's
+        value; ``feather`` blends the sources' errors with the image's weights,
+        ``sigma = sum(w_k sigma_k) / sum(w_k)``: the error of the blended position
+        ``sum(a_k e_k)`` (``a_k = w_k / sum(w)``) when the sources' errors are fully
+        correlated, and an upper bound of its RMS whatever their correlation (Cauchy-Schwarz):
+        the layer never understates the error.
 
     Returns
     -------
@@ -284,17 +251,23 @@ def mosaic(
             ``feather``, the first source on ties), 0 where no source is valid;
             ``attrs["_FillValue"]`` is 0. Write it with
             ``write_ortho(ds.contribution.expand_dims(band=[1]), path)``.
+        ``accuracy`` : (y, x), float32, only with ``accuracy=``
+            The mosaic's predicted horizontal error, metres; NaN where no source is valid
+            (or the selected source's layer has no value). Write it with
+            ``write_ortho(ds.accuracy.expand_dims(band=[1]), path)``.
 
     Raises
     ------
     MosaicError
         No sources; sources of different CRS, resolution, pixel phase or band count; pairs
-        without ``grid`` or ``dem``; an unknown ``method`` or a bad ``feather_px``.
+        without ``grid`` or ``dem``; an unknown ``method`` or a bad ``feather_px``; an
+        ``accuracy`` list of another length than ``sources``, or a layer not on its source's
+        grid or with more than one band.
     """
     import dask.array as da
     import xarray as xr
 
-    from geoblock.ortho.graph import _coords, orthorectify
+    from geoblock.ortho.graph import orthorectify
 
     if method not in METHODS:
         raise MosaicError(f"mosaic: method must be one of {METHODS}, got {method!r}")
@@ -355,6 +328,7 @@ def mosaic(
     out_chunks = ((nb,), _chunk_tuple(shape[0], rc), _chunk_tuple(shape[1], cc))
     ctype = np.uint8 if len(orthos) <= 255 else np.uint16
 
+    errors = _accuracy_sources(accuracy, grids, shape, offsets, (rc, cc))
     values, masks = [], []
     halo = int(math.ceil(feather_px)) if method == "feather" else 0
     for o, off, fill in zip(orthos, offsets, fills, strict=True):
@@ -363,6 +337,8 @@ def mosaic(
         valid = _valid(arr, fill)
         values.append(_place(arr, off, shape, 0, 0).astype(dtype).rechunk(out_chunks))
         masks.append(_place(valid, off, shape, halo, False))
+    acc_chunks = ((1,),) + out_chunks[1:]
+    first_err = da.full((1,) + shape, np.nan, dtype=np.float64, chunks=acc_chunks)
 
     # priority (also feather's value where a single source is valid)
     first_valid = da.zeros(shape, dtype=ctype, chunks=out_chunks[1:])
@@ -374,7 +350,10 @@ def mosaic(
         m = m.rechunk(out_chunks[1:])
         first_valid = da.where(m, ctype(k), first_valid)
         value = da.where(m[None], values[k - 1], value)
+        if errors is not None:
+            first_err = da.where(m[None], errors[k - 1], first_err)
     any_valid = first_valid > 0
+    err = first_err
 
     if method == "priority":
         contribution = first_valid
@@ -385,9 +364,12 @@ def mosaic(
         count = da.zeros(shape, dtype=np.int32, chunks=out_chunks[1:])
         best_w = da.zeros(shape, dtype=np.float64, chunks=out_chunks[1:])
         contribution = da.zeros(shape, dtype=ctype, chunks=out_chunks[1:])
+        err_num = da.zeros((1,) + shape, dtype=np.float64, chunks=acc_chunks)
         for k, (v, m) in enumerate(zip(values, masks, strict=True), start=1):
             w = _weights(m, halo, float(feather_px), shape).rechunk(out_chunks[1:])
             num = num + da.where((w > 0)[None], w[None] * v.astype(np.float64), 0.0)
+            if errors is not None:
+                err_num = err_num + da.where((w > 0)[None], w[None] * errors[k - 1], 0.0)
             den = den + w
             count = count + (w > 0)
             better = w > best_w
@@ -397,6 +379,8 @@ def mosaic(
                                 den > 0, dtype, nodata, dtype=dtype)
         result = da.where((count == 1)[None], value, blended)
         result = da.where(any_valid[None], result, np.asarray(nodata).astype(dtype))
+        err = da.where((count == 1)[None], first_err,
+                       err_num / da.where(den > 0, den, 1.0)[None])
 
     result = result.astype(dtype).rechunk(out_chunks)
     contribution = contribution.astype(ctype).rechunk(out_chunks[1:])
@@ -409,9 +393,54 @@ def mosaic(
         attrs={"_FillValue": 0, "grid_mapping": "spatial_ref",
                "long_name": "1-based index of the source of each pixel (0: none)"},
     )
-    return xr.Dataset({"mosaic": out, "contribution": contrib},
-                      attrs={"method": method, "feather_px": float(feather_px),
-                             "sources": len(orthos)})
+    variables = {"mosaic": out, "contribution": contrib}
+    if errors is not None:
+        err = da.where(any_valid, err[0], np.nan).astype(np.float32).rechunk(out_chunks[1:])
+        variables["accuracy"] = xr.DataArray(
+            err, dims=("y", "x"), coords={k: v for k, v in coords.items() if k != "band"},
+            name="accuracy", attrs={"_FillValue": float("nan"), "grid_mapping": "spatial_ref",
+                                    "units": "m",
+                                    "long_name": "predicted horizontal error (m, radial RMS)"})
+    return xr.Dataset(variables, attrs={"method": method, "feather_px": float(feather_px),
+                                        "sources": len(orthos)})
+
+
+def _accuracy_sources(accuracy: Sequence[xr.DataArray] | None, grids: Sequence[OutputGrid],
+                      shape: tuple[int, int], offsets: Sequence[tuple[int, int]],
+                      chunks: tuple[int, int]) -> list[da.Array] | None:
+    """Each source's accuracy layer placed on the output grid, ``(1, y, x)`` float64 (NaN
+    outside it), or None without layers."""
+    import dask.array as da
+
+    if accuracy is None:
+        return None
+    layers = list(accuracy)
+    if len(layers) != len(grids):
+        raise MosaicError(f"mosaic: {len(layers)} accuracy layers for {len(grids)} sources "
+                          "(one per source, in the same order)")
+    out = []
+    for i, (layer, g, off) in enumerate(zip(layers, grids, offsets, strict=True)):
+        mine = _grid_of(layer, i)
+        if int(layer.sizes["band"]) != 1:
+            raise MosaicError(f"mosaic: accuracy layer {i + 1} has {int(layer.sizes['band'])} "
+                              "bands, not 1")
+        if not (mine.crs == g.crs and mine.shape == g.shape and all(
+                abs(a - b) <= 1e-9 * max(1.0, abs(b))
+                for a, b in zip(tuple(mine.transform)[:6], tuple(g.transform)[:6],
+                                strict=True))):
+            raise MosaicError(f"mosaic: accuracy layer {i + 1} is not on its source's grid "
+                              f"({mine.shape} at {tuple(mine.transform)[:6]}, not {g.shape} "
+                              f"at {tuple(g.transform)[:6]})")
+        arr = layer.data if isinstance(layer.data, da.Array) else da.from_array(
+            np.asarray(layer.data), chunks=(1,) + chunks)
+        fill = _fill_of(layer)
+        arr = arr.astype(np.float64)
+        if fill is not None and not math.isnan(fill):
+            arr = da.where(arr == fill, np.nan, arr)
+        placed = _place(arr, off, shape, 0, np.nan)
+        out.append(placed.rechunk(((1,), _chunk_tuple(shape[0], chunks[0]),
+                                   _chunk_tuple(shape[1], chunks[1]))))
+    return out
 
 
 # ---------------------------------------------------------------------- reading orthos
@@ -452,7 +481,6 @@ def open_ortho(path: ImageLike, chunks: int | tuple[int, int] = 1024) -> xr.Data
     from dask.highlevelgraph import HighLevelGraph
 
     from geoblock.io.images import ImageSource, open_image
-    from geoblock.ortho.graph import _coords
     from geoblock.ortho.grid import OutputGrid
 
     image = open_image(path)  # one open: shape, bands, dtype, nodata, CRS and geotransform
