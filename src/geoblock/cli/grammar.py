@@ -60,6 +60,9 @@ OPTIONS: dict[str, str] = {
     "--co": "a GDAL creation option KEY=VALUE of a GeoTIFF written",
     "--allow-empty": "write an output with no valid pixel (with a warning) instead of failing",
     "--nodata": "the nodata value of the raster written",
+    "--accuracy-layer": "also write the predicted horizontal error of every pixel, metres",
+    "--source-accuracy": "the accuracy layer of each input ortho, in the same order",
+    "--no-accuracy-layer": "do not write the accuracy layer",
     "--no-figures": "do not draw the PNG figures",
     "--no-images": "do not render the simulated raw images",
     # grids and computation

@@ -70,6 +70,16 @@ __all__ = ["ortho"]
               help="Write OUT with a warning when no pixel is valid (DEM not covering the "
               "scene, --bounds missing the footprint); by default that is an error and "
               "nothing is written.")
+@click.option("--accuracy-layer", "accuracy_layer", metavar="[ACCURACY.tif]", is_flag=False,
+              flag_value="", default=None,
+              help="Also write the accuracy layer: the predicted horizontal error of every "
+              "pixel, metres (float32, radial RMS; the model's posterior covariance when "
+              "MODEL_FILE is a model JSON from 'geoblock adjust', else its a-priori accuracy, "
+              "plus --dem-sigma through the viewing geometry); default path: OUT's stem + "
+              "'_accuracy.tif'. Needs --dem-sigma.")
+@click.option("--dem-sigma", "dem_sigma", type=float, metavar="M", default=None,
+              callback=nonnegative_float,
+              help="Standard deviation of the DEM's heights, metres (with --accuracy-layer).")
 @scheduler_opt
 @click.option("--cog", is_flag=True, default=False, help="Write a Cloud-Optimized GeoTIFF.")
 @write_options
@@ -83,6 +93,7 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
           crs: pyproj.CRS | None, resolution: float | None,
           bounds: tuple[float, float, float, float] | None,
           resampling: str, tolerance: float, chunks: int, max_pixels: int, allow_empty: bool,
+          accuracy_layer: str | None, dem_sigma: float | None,
           scheduler: str, cog: bool, compress: str, level: int | None,
           creation_options: dict[str, str], overwrite: bool, progress: bool) -> None:
     """Orthorectify IMAGE onto a map grid and write OUT (tiled GeoTIFF).
@@ -103,6 +114,14 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     is nodata, unless --dem-voids fills the voids from the surrounding posts or
     --fill-height gives a height for every such place (GDAL's RPC_DEM_MISSING_VALUE).
 
+    --accuracy-layer writes, beside OUT (or at ACCURACY.tif), the predicted horizontal error
+    of every pixel in metres on OUT's grid, nodata where OUT has none: the radial RMS
+    sqrt(sigma_E^2 + sigma_N^2) of the model's covariance propagated to the ground plus
+    --dem-sigma times the tangent of the incidence. The covariance is the posterior that
+    'geoblock adjust' stores in its models/<image>.json (give it with --model), else the
+    model's a-priori accuracy (parameter sigmas, or the product's stated accuracy such as an
+    RPC's ERR_BIAS); a model that states neither is refused. The layer's tags say which.
+
     IMAGE may be a crop of the model's scene (vendor metadata describe the full scene): the
     crop offset is applied when IMAGE states it with a pixel-unit geotransform (no CRS,
     pixel size 1, origin at the crop's first pixel), or given with --crop-offset ROW COL. An
@@ -114,6 +133,8 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
       geoblock ortho scene.tif ortho.tif --dem N43E007.hgt
       geoblock ortho scene.tif ortho.tif --dem dem.tif --model scene_RPC.TXT \\
           --crs EPSG:32632 --res 0.5 --resampling bicubic --scheduler processes
+      geoblock ortho scene.tif ortho.tif --dem dem.tif --model adjusted/models/scene.json \\
+          --dem-sigma 4 --accuracy-layer
     """
     from geoblock.errors import EmptyOutputError
     from geoblock.io import open_model
@@ -121,9 +142,18 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     from geoblock.ortho import OutputGrid, ortho_job
     from geoblock.ortho.grid import check_oversampling
 
-    check_outputs({"OUT": output}, {"IMAGE": image, "--model": model_file, "--dem": dem_source},
+    acc_path = _accuracy_output(output, accuracy_layer, dem_sigma)
+    check_outputs({"OUT": output, "--accuracy-layer": acc_path},
+                  {"IMAGE": image, "--model": model_file, "--dem": dem_source},
                   overwrite=overwrite)
     model = open_model(model_file if model_file is not None else image)
+    posterior = None
+    if acc_path is not None:  # refused before any work when the model states no accuracy
+        from geoblock.io.models import read_model_posterior
+        from geoblock.models.uncertainty import model_accuracy
+
+        posterior = read_model_posterior(model_file if model_file is not None else image)
+        model_accuracy(model, posterior, where=model_file or image)
     source = open_image(image)
     # a crop of the model's scene: shifted, or refused when nothing says where it lies (also
     # refuses --crop-offset with --no-crop)
@@ -149,11 +179,52 @@ def ortho(image: str, output: str, dem_source: str, dem_vertical: str | None, ge
     try:
         with using_scheduler(scheduler) as where:
             write_ortho(data, output, scheduler=where, **write)
+            if acc_path is not None:
+                assert dem_sigma is not None  # _accuracy_output refuses the layer without it
+                layer = _write_accuracy(data.model, dem, grid, output, acc_path, dem_sigma,
+                                        posterior, chunks, where, write)
     except EmptyOutputError as exc:
         raise EmptyOutputError(f"{exc}: {_why_empty(model, dem, grid, bool(bounds))}; "
                                "pass --allow-empty to write it anyway") from exc
     click.echo(f"{output}: {grid.shape[0]} x {grid.shape[1]} px, {source.bands} band(s)",
                err=True)
+    if acc_path is not None:
+        click.echo(f"{acc_path}: accuracy layer ({layer}), metres", err=True)
+
+
+def _accuracy_output(output: str, accuracy_layer: str | None,
+                     dem_sigma: float | None) -> str | None:
+    """The accuracy layer's path (None: not asked for); --dem-sigma is needed with it, and
+    only with it."""
+    if accuracy_layer is None:
+        if dem_sigma is not None:
+            raise click.UsageError("--dem-sigma is used only with --accuracy-layer")
+        return None
+    if dem_sigma is None:
+        raise click.UsageError(
+            "--accuracy-layer needs --dem-sigma METRES, the standard deviation of the DEM's "
+            "heights (its error moves every pixel by sigma x tan(incidence); e.g. about 4-10 m "
+            "for SRTM, less for a lidar DTM): geoblock does not guess it")
+    if accuracy_layer == "":
+        from geoblock.ortho.accuracy import accuracy_path
+
+        return accuracy_path(output)
+    return accuracy_layer
+
+
+def _write_accuracy(model: SensorModel, dem: DemSource, grid: OutputGrid, output: str,
+                    path: str, dem_sigma: float, posterior: Any, chunks: int, where: Any,
+                    write: dict[str, Any]) -> str:
+    """Write the accuracy layer of the ortho just written at ``output`` (its nodata pixels
+    masked); returns what the covariance was, for the summary line."""
+    from geoblock.io.images import write_ortho
+    from geoblock.ortho.accuracy import ACCURACY_DESCRIPTION, accuracy_job
+
+    job = accuracy_job(model, dem, grid, dem_sigma=dem_sigma, posterior=posterior,
+                       ortho=output, chunks=chunks)
+    write_ortho(job, path, scheduler=where, tags=job.tags,
+                band_descriptions=[ACCURACY_DESCRIPTION], units="m", **write)
+    return f"{job.accuracy.kind}: {job.accuracy.source}"
 
 
 def _why_empty(model: SensorModel, dem: DemSource, grid: OutputGrid, bounds_given: bool) -> str:
