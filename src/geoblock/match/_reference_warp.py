@@ -219,8 +219,32 @@ def _slope(dem: DemSource, lon: np.ndarray, lat: np.ndarray, step_m: float) -> n
     return np.hypot((he - hw) / (2 * step_m), (hn - hs) / (2 * step_m))
 
 
+def _parallax(im: MatchImage, grid: Any, dem: DemSource, row: np.ndarray, col: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Where a DEM error moves the warped image: the shift of the ground the image's line of
+    sight meets, per metre of height, reference pixels per metre (row, col) at the nodes
+    (0 where it cannot be computed)."""
+    lon, lat = grid.lonlat(row, col)
+    h = dem.height(lon, lat)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ic, st = im.model.project_with_status(lon, lat, h)
+        up, st2 = im.model.backproject_with_status(ic.row, ic.col, h + _PARALLAX_M)
+    from geoblock import coords
+
+    x, y = coords.transformer("EPSG:4326", grid.crs).transform(up.lon, up.lat)
+    r2, c2 = grid.rowcol(np.asarray(x), np.asarray(y))
+    er, ec = (r2 - row) / _PARALLAX_M, (c2 - col) / _PARALLAX_M
+    ok = (np.asarray(st) == 0) & (np.asarray(st2) == 0) & np.isfinite(er) & np.isfinite(ec)
+    return np.where(ok, er, 0.0), np.where(ok, ec, 0.0)
+
+
+#: Height step of the parallax direction, metres.
+_PARALLAX_M = 50.0
+
+
 def match_one(im: MatchImage, ref: ReferenceOrtho, dem: DemSource, ce90: float,
-              options: ReferenceOptions, say: Callable[[str], None]
+              options: ReferenceOptions, say: Callable[[str], None], dem_sigma_m: float = 10.0
               ) -> tuple[ReferenceMatches, dict[str, np.ndarray]]:
     """Steps 1-6 of :mod:`geoblock.match.reference` for one image: its statistics, and the
     kept points' ``lon, lat, h, slope, row, col`` (the model's pixels as given)."""
@@ -268,40 +292,64 @@ def match_one(im: MatchImage, ref: ReferenceOrtho, dem: DemSource, ce90: float,
     d_row = np.full(n, np.nan)
     d_col = np.full(n, np.nan)
     score = np.full(n, np.nan)
+    epi_r, epi_c = _parallax(im, grid, dem, nr.astype(float), nc.astype(float))
     if n:
-        eye = np.broadcast_to(np.eye(2), (n, 2, 2))
         fr, fc = nr.astype(float), nc.astype(float)
-        res = refine_matches(pix_ref, warped, fr, fc, fr + shift[0], fc + shift[1], eye,
-                             half_px=half, search_px=options.refine_search_px,
-                             min_score=options.min_score)
-        ok = res.status == RefineStatus.CONVERGED
-        status[res.status == RefineStatus.NO_DATA] = "nodata"
-        status[~ok & (res.status != RefineStatus.NO_DATA)] = "correlation"
-        d_row[ok] = res.row[ok] - fr[ok]
-        d_col[ok] = res.col[ok] - fc[ok]
-        score[ok] = res.score[ok]
+        # starts along the parallax direction, 2 refine_search_px apart, out to three times
+        # the DEM's accuracy: a DEM error moves the warped image along it, farther than the
+        # correlation's search at a fine reference
+        norm = np.hypot(epi_r, epi_c)
+        ur = np.where(norm > 0, epi_r / np.where(norm > 0, norm, 1.0), 0.0)
+        uc = np.where(norm > 0, epi_c / np.where(norm > 0, norm, 1.0), 0.0)
+        reach = 3.0 * dem_sigma_m * norm
+        step = 2.0 * options.refine_search_px
+        m = int(math.ceil(float(reach.max()) / step)) if reach.size else 0
+        first = np.full(n, 255, np.uint8)
+        for t in sorted(np.arange(-m, m + 1) * step, key=abs):
+            sel = np.flatnonzero(np.abs(t) <= reach + step / 2)
+            if not sel.size:
+                continue
+            res = refine_matches(pix_ref, warped, fr[sel], fc[sel],
+                                 fr[sel] + shift[0] + t * ur[sel],
+                                 fc[sel] + shift[1] + t * uc[sel],
+                                 np.broadcast_to(np.eye(2), (sel.size, 2, 2)), half_px=half,
+                                 search_px=options.refine_search_px,
+                                 min_score=options.min_score)
+            if t == 0:
+                first[sel] = res.status
+            ok = res.status == RefineStatus.CONVERGED
+            better = ok & ~(res.score <= score[sel])  # NaN score: not matched yet
+            idx = sel[better]
+            d_row[idx] = res.row[better] - fr[idx]
+            d_col[idx] = res.col[better] - fc[idx]
+            score[idx] = res.score[better]
+        matched = np.isfinite(score)
+        status[~matched & (first == RefineStatus.NO_DATA)] = "nodata"
+        status[~matched & (first != RefineStatus.NO_DATA)] = "correlation"
     live = status == "kept"
     centre, scale = scale_of(warped.shape)
     shift_px = shift
     sigma_match = options.sigma_match_px or math.nan
     if live.sum() >= MIN_MATCHES:
-        zero = np.zeros(n)
         dr0, dc0 = np.nan_to_num(d_row), np.nan_to_num(d_col)
-        agree = consensus(dr0[live], dc0[live], zero[live], zero[live], tolerance_px=1.0,
-                          height_tolerance_m=0.0)
+        agree = consensus(dr0[live], dc0[live], epi_r[live], epi_c[live], tolerance_px=1.0,
+                          height_tolerance_m=3.0 * dem_sigma_m)
         begin = np.zeros(n, bool)
         begin[np.flatnonzero(live)[agree]] = True
         try:
-            final = consistent(nr.astype(float), nc.astype(float), dr0, dc0, zero, zero, begin,
-                               order=options.order, k=options.k, min_sigma_px=0.05,
-                               sigma_px=0.5, centre=centre, scale=scale, eligible=live)
+            final = consistent(nr.astype(float), nc.astype(float), dr0, dc0, epi_r, epi_c,
+                               begin, order=options.order, k=options.k, min_sigma_px=0.05,
+                               sigma_px=0.5, sigma_h_m=dem_sigma_m,
+                               max_sigma_h_m=2.0 * dem_sigma_m, centre=centre, scale=scale,
+                               eligible=live)
             status[live & ~final.inlier] = "offset"
-            br, bc = final.bias(nr.astype(float), nc.astype(float))
             kept = status == "kept"
             shift_px = final.bias.mean(nr[kept].astype(float), nc[kept].astype(float))
-            v = np.concatenate([(dr0 - br)[kept], (dc0 - bc)[kept]])
             if options.sigma_match_px is None:
-                sigma_match = max(MAD_SCALE * float(np.median(np.abs(v))), MIN_SIGMA_MATCH_PX)
+                # across the parallax direction: the matching's own scatter (along it the
+                # DEM's errors move the match, and sigma_h carries them)
+                sigma_match = max(MAD_SCALE * float(np.median(np.abs(final.perp[kept]))),
+                                  MIN_SIGMA_MATCH_PX)
         except MatchError:
             status[live] = "offset"
     else:

@@ -601,7 +601,8 @@ def match_reference(images: Mapping[str, Any] | Sequence[MatchImage], reference:
     results = []
     parts: list[dict[str, np.ndarray]] = []
     for im in ims:
-        res, rows = match_one(im, ref, dem, float(reference_accuracy_ce90_m), options, say)
+        res, rows = match_one(im, ref, dem, float(reference_accuracy_ce90_m), options, say,
+                              float(dem_sigma_m))
         say("  " + res.summary())
         results.append(res)
         parts.append(rows)
