@@ -53,6 +53,7 @@ def test_ortho_writes_the_layer_beside_it(runner, cli, tmp_path, scene):
     assert tags["GEOBLOCK_ACCURACY_COVARIANCE"] == "posterior"
     assert tags["GEOBLOCK_ACCURACY_SOURCE"].startswith("geoblock adjust t.toml")
     assert tags["GEOBLOCK_ACCURACY_DEM_SIGMA"] == "5"
+    assert tags["GEOBLOCK_ACCURACY_MODEL"] == "crop of image-correction of rpc"
     # 0.3/0.4 px of 0.5 m and 5 m of DEM error at 8.6 deg incidence
     assert 0.7 < float(np.nanmin(values)) <= float(np.nanmax(values)) < 0.95
     assert "o_accuracy.tif: accuracy layer (posterior" in result.output

@@ -100,6 +100,16 @@ def accuracy_tags(accuracy: ModelAccuracy, dem_sigma: float, model: str = "") ->
     return tags
 
 
+def _model_chain(model: Any) -> str:
+    """``"crop of image-correction of rpc"``: the model and the models it wraps."""
+    names: list[str] = []
+    while model is not None and len(names) < 8:
+        names.append(str(getattr(model, "name", type(model).__name__)))
+        inner = getattr(model, "model", None)
+        model = inner if inner is not model else None
+    return " of ".join(names)
+
+
 class _AccuracyContext(_Context):
     """The lattice's context with the log of the predicted error as its first field."""
 
@@ -218,7 +228,7 @@ class AccuracyJob:
     @property
     def tags(self) -> dict[str, str]:
         """The GeoTIFF metadata (:func:`accuracy_tags`)."""
-        return accuracy_tags(self.accuracy, self.dem_sigma, self.model.name)
+        return accuracy_tags(self.accuracy, self.dem_sigma, _model_chain(self.model))
 
     def windows(self) -> list[tuple[int, int, int, int]]:
         """Every chunk's ``(row_start, row_stop, col_start, col_stop)``, row-major order."""
