@@ -24,12 +24,17 @@ Each image is matched against the reference **at the reference's resolution**:
    then least-squares matching gives the sub-pixel position. Area matching on a grid rather
    than SIFT: two orthos on one grid differ by a shift and radiometry only, which is what
    correlation measures best (a tenth of a pixel), and it needs no keypoint at the coarse
-   reference's scale.
+   reference's scale. A DEM error moves the warped image along the image's **parallax
+   direction** (the ground its line of sight meets, per metre of height, in reference pixels):
+   each patch is started at points ``2 refine_search_px`` apart along it, out to three times
+   the DEM's accuracy, and the best correlation wins (at a 10 m reference one start; at a
+   0.5 m reference over SRTM several).
 5. **Outliers.** The offsets (warped minus reference, reference pixels) are tested as tie
-   points are (:func:`geoblock.match.consistency.consistent` with no epipolar direction: an
-   isotropic test): a low-order polynomial of the reference pixel (the image model's
+   points are (:func:`geoblock.match.consistency.consistent`, the parallax direction as the
+   epipolar one): a low-order polynomial of the reference pixel (the image model's
    misregistration, order ``order``) fitted robustly, matches beyond ``k`` robust standard
-   deviations rejected (``offset``), to a fixed point.
+   deviations across the parallax direction, or beyond the DEM's height scatter along it,
+   rejected (``offset``), to a fixed point.
 6. **Control points.** A kept match is a ground control point: its **ground** is where the
    reference shows the feature, the node's centre (the reference's geotransform, to WGS84),
    at the DEM's height there (metres above the ellipsoid, the geoid applied as the DEM
@@ -46,8 +51,9 @@ Horizontal, per axis::
 
 ``2.1460`` is the circular-normal CE90 factor (NSSDA: ``CE90 = 2.1460 sigma`` for equal
 axes); ``sigma_match_px`` the matching precision in reference pixels, by default the robust
-scale of the kept offsets about the fitted polynomial (what the matches disagree by, as the
-tie-point sigma is measured), at least :data:`MIN_SIGMA_MATCH_PX`; ``gsd_ref`` the reference's
+scale of the kept offsets' residuals about the fitted polynomial across the parallax direction
+(what the matches disagree by, as the tie-point sigma is measured), at least
+:data:`MIN_SIGMA_MATCH_PX`; ``gsd_ref`` the reference's
 pixel size in metres. Vertical::
 
     sigma_h = sqrt(sigma_DEM^2 + (|grad h| * sigma_e)^2)
