@@ -73,7 +73,8 @@ def test_report_separates_reference_control_and_states_the_accuracy(tmp_path):
     assert "## Height control points" in text
     assert "## Accuracy statements (NSSDA)" in text
     header = ("| image | n ICP | CE90 predicted | CE90 empirical (percentile) | CE90 NSSDA | "
-              "CE95 predicted | CE95 empirical | n LE | LE90 predicted | LE90 empirical |")
+              "CE95 predicted | CE95 empirical | n LE | LE90 predicted | LE90 empirical | "
+              "CE90 grid |")
     assert header in text
     assert "| **block** |" in text
     written = adjustment.write_result(result, tmp_path / "out", figures=False)
@@ -107,4 +108,25 @@ def test_report_says_le90_is_not_available_without_multi_image_icps():
     assert "## Accuracy statements (NSSDA)" in text
     assert "LE90 n/a: no ICP measured in two images or more" in text
     row = next(line for line in text.splitlines() if line.startswith("| **block** |"))
-    assert row.rstrip().endswith("| 0 | n/a | n/a |")
+    assert "| 0 | n/a | n/a |" in row
+
+
+def test_without_icps_the_grid_prediction_is_stated():
+    import math
+
+    import numpy as np
+
+    from geoblock.adjust.block import Block, adjust
+    from geoblock.testing.blocks import affine_block
+
+    b = affine_block((1, 2), gcps=5, icps=0, tps=80, ictps=0, seed=9).block
+    result = adjust(Block(b.models, b.measurements, b.ground, b.dem, b.dem_sigma_m))
+    st = result.accuracy_statement()
+    assert st.n_icp == 0 and math.isnan(st.ce90_predicted) and st.reason == "no ICP"
+    assert st.ce90_grid > 0 and st.ce95_grid > st.ce90_grid
+    assert set(result.grid_covariance) == set(result.models)
+    assert all(c.shape == (81, 2, 2) and np.isfinite(c).all()
+               for c in result.grid_covariance.values())
+    text = adjustment.report_markdown(result)
+    row = next(line for line in text.splitlines() if line.startswith("| **block** |"))
+    assert row.rstrip().endswith(f"| {st.ce90_grid:.2f} |")

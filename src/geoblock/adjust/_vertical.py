@@ -91,3 +91,36 @@ def vertical_check(block: Block, models: Mapping[str, SensorModel],
     return VerticalCheck(id=t.id.astype(str), rays=t.rays, e=de, n=dn, u=du,
                          covariance=np.where(ok[:, None, None], cov, np.nan),
                          status=t.status)
+
+
+#: nodes per image axis of the grid the ICP-free CE90 is predicted over
+GRID_NODES = 9
+
+
+def grid_covariances(block: Block, adjusted: Mapping[str, SensorModel],
+                     q_by_image: Mapping[str, tuple[Sequence[str], Float64Array]],
+                     ) -> dict[str, Float64Array]:
+    """Per image, the predicted east/north covariance (G, 2, 2) of the ground point of a
+    ``GRID_NODES`` x ``GRID_NODES`` grid of image points located on the DEM through the
+    adjusted model: its parameters' posterior covariance and the DEM's sigma propagated to
+    the ground (:func:`geoblock.models.uncertainty.ground_error`), no image-measurement
+    term (what an ortho pixel carries). Empty without a DEM."""
+    from geoblock.dem.intersect import localize
+    from geoblock.models.uncertainty import ground_error
+
+    out: dict[str, Float64Array] = {}
+    if block.dem is None:
+        return out
+    for image, model in adjusted.items():
+        names, cov = q_by_image.get(image, ((), np.zeros((0, 0))))
+        rows, cols = model.shape
+        r, c = np.meshgrid(np.linspace(0, rows - 1, GRID_NODES),
+                           np.linspace(0, cols - 1, GRID_NODES), indexing="ij")
+        g, status = localize(model, r.ravel(), c.ravel(), block.dem, warn=False)
+        ok = status == Status.CONVERGED
+        if not ok.any():
+            continue
+        err = ground_error(model, names, cov, ground=(g.lon[ok], g.lat[ok], g.h[ok]),
+                           dem_sigma=block.dem_sigma_m)
+        out[image] = err.covariance
+    return out

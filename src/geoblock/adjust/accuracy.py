@@ -245,6 +245,10 @@ class AccuracyStatement:
     reason : str
         Why some figures are NaN ("" when all are given): no ICP, or no ICP measured in two
         images (vertical figures need an intersection).
+    ce90_grid, ce95_grid : float
+        :func:`predicted_ce` over a grid of image points located on the DEM (the adjusted
+        parameters' posterior and the DEM's sigma propagated to the ground, no image
+        measurement error): a prediction that needs no check point; NaN without a DEM.
     """
 
     image: str | None
@@ -260,6 +264,8 @@ class AccuracyStatement:
     le90_empirical: float
     le90_nssda: float
     reason: str = ""
+    ce90_grid: float = float("nan")
+    ce95_grid: float = float("nan")
 
     def as_dict(self) -> dict[str, Any]:
         """The fields as a plain dictionary (NaN kept)."""
@@ -268,7 +274,8 @@ class AccuracyStatement:
 
 def accuracy_statement(de: ArrayLike, dn: ArrayLike, covariance: ArrayLike,
                        du: ArrayLike = (), sigma_up: ArrayLike = (), *,
-                       image: str | None = None) -> AccuracyStatement:
+                       image: str | None = None, grid_covariance: ArrayLike = (),
+                       ) -> AccuracyStatement:
     """The :class:`AccuracyStatement` of check-point errors and their predicted covariances.
 
     Parameters
@@ -283,6 +290,9 @@ def accuracy_statement(de: ArrayLike, dn: ArrayLike, covariance: ArrayLike,
         Their predicted vertical sigmas, metres.
     image : str, optional
         The label (None: the block).
+    grid_covariance : array_like, (G, 2, 2)
+        Predicted east/north covariances over a grid of ground points (no check point
+        needed), square metres; empty: ``ce90_grid`` is NaN.
     """
     e = np.asarray(de, dtype=np.float64).ravel()
     n = np.asarray(dn, dtype=np.float64).ravel()
@@ -310,5 +320,9 @@ def accuracy_statement(de: ArrayLike, dn: ArrayLike, covariance: ArrayLike,
     else:
         le = (predicted_le(s, 0.90), empirical_le(z, 0.90),
               nssda_le(math.sqrt(float(np.mean(z**2))), 0.90))
+    grid = np.asarray(grid_covariance, dtype=np.float64).reshape(-1, 2, 2)
+    nan_grid = not np.isfinite(grid).all(axis=(1, 2)).any()
     return AccuracyStatement(image, int(e.size), *ce, int(z.size), *le,
-                             reason="; ".join(reasons))
+                             reason="; ".join(reasons),
+                             ce90_grid=nan if nan_grid else predicted_ce(grid, 0.90),
+                             ce95_grid=nan if nan_grid else predicted_ce(grid, 0.95))

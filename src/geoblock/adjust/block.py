@@ -370,6 +370,10 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         from geoblock.adjust._vertical import vertical_check
 
         vertical = vertical_check(block, models, adjusted, covariance, index)
+    from geoblock.adjust._vertical import grid_covariances
+
+    grid = grid_covariances(block, adjusted, {
+        image: (parameters[image].names, q_by_image[image][1]) for image in q_by_image})
     hcp = None
     if hcp_parts:
         ids_h, obs_h, adj_h, sig_h, post_h = (np.concatenate(x) for x in zip(*hcp_parts,
@@ -418,7 +422,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         ictp=ictp, sigma0=sigma0, dof=dof, converged=bool(converged), iterations=iterations,
         history=history, mode=mode, dem_control=dem_control if mode == "block" else "none",
         robust=robust, notes=notes, predicted_covariance=pred_cov, check_source=check_source,
-        shifts=shifts, hcp=hcp, vertical=vertical)
+        shifts=shifts, hcp=hcp, vertical=vertical, grid_covariance=grid)
 
 
 def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) -> PointErrors:

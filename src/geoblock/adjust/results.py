@@ -263,6 +263,11 @@ class BlockResult:
         The height control points in the solution.
     vertical : VerticalCheck or None
         ICPs measured in two images or more, intersected: the vertical accuracy.
+    grid_covariance : dict of str to ndarray, (G, 2, 2)
+        Per image (with a DEM), the predicted east/north covariance of the ground points of
+        a 9 x 9 grid of image points on the DEM: the adjusted parameters' posterior and the
+        DEM's sigma propagated to the ground (no image-measurement term): the accuracy
+        statement without check points.
     """
 
     models: dict[str, SensorModel]
@@ -288,6 +293,7 @@ class BlockResult:
     shifts: dict[str, SourceShift] = field(default_factory=dict)
     hcp: HeightControlResults | None = None
     vertical: VerticalCheck | None = None
+    grid_covariance: dict[str, Float64Array] = field(default_factory=dict)
 
     def parameter_covariance(self, image: str) -> tuple[tuple[str, ...], Float64Array]:
         """The posterior covariance of one image's adjusted parameters.
@@ -364,7 +370,7 @@ class BlockResult:
         their radial errors and the NSSDA figure from their RMSE. LE90: over the ICPs measured
         in two images or more (one of them ``image``), intersected through the adjusted
         models (:attr:`vertical`); NaN with :attr:`AccuracyStatement.reason` when there is
-        none.
+        none. ``ce90_grid``/``ce95_grid``: over :attr:`grid_covariance` (no ICP needed).
 
         Raises
         ------
@@ -389,8 +395,10 @@ class BlockResult:
                 m = self.measurements
                 mine = np.isin(v.id, m.id[(m.image == image) & (m.kind == "icp")])
             du, sig = v.u[mine], v.sigma_up[mine]
+        grid = [c for i, c in self.grid_covariance.items() if image is None or i == image]
         return accuracy_statement(self.check.e[rows], self.check.n[rows], cov[rows], du, sig,
-                                  image=image)
+                                  image=image, grid_covariance=np.concatenate(grid)
+                                  if grid else np.empty((0, 2, 2)))
 
     def ictp_by_pair(self) -> dict[tuple[str, str], AccuracyStats]:
         """ICTP discrepancy statistics per pair of images (Teo et al.'s relative accuracy)."""

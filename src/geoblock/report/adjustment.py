@@ -143,9 +143,10 @@ def _statistics(result: BlockResult) -> dict[str, Any]:
 
 def accuracy_statements(result: BlockResult) -> list[AccuracyStatement]:
     """:meth:`BlockResult.accuracy_statement <geoblock.adjust.BlockResult.accuracy_statement>`
-    of every image that has ICP measurements, then of the block."""
+    of every image that has ICP measurements or a grid prediction, then of the block."""
     images = [i for i in result.models
-              if np.any((result.check.image == i) & (result.check.kind == "ICP"))]
+              if np.any((result.check.image == i) & (result.check.kind == "ICP"))
+              or i in result.grid_covariance]
     return [*(result.accuracy_statement(i) for i in images), result.accuracy_statement()]
 
 
@@ -155,9 +156,9 @@ def _value(x: float) -> str:
 
 def _accuracy_table(result: BlockResult) -> list[str]:
     rows = accuracy_statements(result)
-    if not rows or rows[-1].n_icp == 0:
+    if not rows or (rows[-1].n_icp == 0 and not math.isfinite(rows[-1].ce90_grid)):
         return ["## Accuracy statements (NSSDA)", "",
-                "No ICP: the accuracy cannot be stated empirically (add independent check "
+                "No ICP and no DEM: the accuracy cannot be stated (add independent check "
                 "points).", ""]
     lines = ["## Accuracy statements (NSSDA)", "",
              "Metres. **Predicted**: from the posterior covariance (each ICP measurement's "
@@ -166,17 +167,22 @@ def _accuracy_table(result: BlockResult) -> list[str]:
              "90th / 95th percentile of the ICPs' radial errors; **NSSDA**: 2.1460 / 2.4477 x "
              "RMSE_r / sqrt(2) (FGDC-STD-007.3-1998). LE90: ICPs measured in two images or "
              "more, intersected through the adjusted models; predicted by first-order "
-             "propagation of the image noise and the parameters' posterior covariance.", "",
+             "propagation of the image noise and the parameters' posterior covariance. **CE90 "
+             "grid**: predicted over a 9 x 9 grid of each image's points on the DEM (the "
+             "parameters' posterior and the DEM's sigma, no measurement error: what an ortho "
+             "pixel carries), needing no ICP.", "",
              "| image | n ICP | CE90 predicted | CE90 empirical (percentile) | CE90 NSSDA | "
-             "CE95 predicted | CE95 empirical | n LE | LE90 predicted | LE90 empirical |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "CE95 predicted | CE95 empirical | n LE | LE90 predicted | LE90 empirical | "
+             "CE90 grid |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     notes = []
     for st in rows:
         label = "**block**" if st.image is None else st.image
         lines.append(f"| {label} | {st.n_icp} | {_value(st.ce90_predicted)} | "
                      f"{_value(st.ce90_empirical)} | {_value(st.ce90_nssda)} | "
                      f"{_value(st.ce95_predicted)} | {_value(st.ce95_empirical)} | {st.n_le} | "
-                     f"{_value(st.le90_predicted)} | {_value(st.le90_empirical)} |")
+                     f"{_value(st.le90_predicted)} | {_value(st.le90_empirical)} | "
+                     f"{_value(st.ce90_grid)} |")
         if st.reason:
             notes.append(f"- {'block' if st.image is None else st.image}: {st.reason}")
     return lines + [""] + notes + ([""] if notes else [])
