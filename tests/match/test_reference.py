@@ -152,7 +152,7 @@ def test_image_positions_are_where_the_true_model_sees_the_feature(scene, contro
 def test_rows_and_sigmas(scene, control):
     g, m = control.ground, control.measurements
     assert list(g) == ["id", "kind", "source", "lon", "lat", "h", "sigma_e", "sigma_n",
-                       "sigma_h"]
+                       "sigma_h", "sigma_shift_e", "sigma_shift_n", "sigma_shift_h"]
     assert list(m) == ["id", "image", "row", "col", "sigma", "kind"]
     assert set(g["kind"]) == {"gcp"} and set(g["source"]) == {"reference:ref_10.tif"}
     assert np.unique(g["id"]).size == g["id"].size
@@ -160,10 +160,15 @@ def test_rows_and_sigmas(scene, control):
     assert np.allclose(g["h"], dem.height(g["lon"], g["lat"]))
     for stats in control.images:
         sel = m["image"] == stats.image
-        expected = math.hypot(5.0 / CE90_FACTOR, stats.sigma_match_px * 10.0)
-        assert np.allclose(g["sigma_e"][sel], expected)
-        assert np.allclose(g["sigma_n"][sel], expected)
-        assert (g["sigma_h"][sel] >= 5.0).all() and (g["sigma_h"][sel] < 5.0 + expected).all()
+        own = stats.sigma_match_px * 10.0
+        assert np.allclose(g["sigma_e"][sel], own)
+        assert np.allclose(g["sigma_n"][sel], own)
+        # the reference's CE90 is one error common to all its points
+        assert np.allclose(g["sigma_shift_e"][sel], 5.0 / CE90_FACTOR)
+        assert np.allclose(g["sigma_shift_n"][sel], 5.0 / CE90_FACTOR)
+        assert np.all(g["sigma_shift_h"][sel] == 0.0)
+        total = math.hypot(own, 5.0 / CE90_FACTOR)
+        assert (g["sigma_h"][sel] >= 5.0).all() and (g["sigma_h"][sel] < 5.0 + total).all()
         assert stats.counts()["kept"] == sel.sum()
         # the image's misregistration against the reference: its onboard model's error
         # plus the reference's shift, a few reference pixels
@@ -171,10 +176,11 @@ def test_rows_and_sigmas(scene, control):
 
 
 def test_sigma_formula():
-    s, h = reference_sigmas(8.5, 0.2, 10.0, 5.0, [0.0, 0.3])
-    assert s == pytest.approx(math.sqrt((8.5 / 2.1460) ** 2 + 2.0**2))
+    s, h, common = reference_sigmas(8.5, 0.2, 10.0, 5.0, [0.0, 0.3])
+    assert s == pytest.approx(2.0)  # the matching's 0.2 px of 10 m
+    assert common == pytest.approx(8.5 / 2.1460)
     assert h[0] == pytest.approx(5.0)
-    assert h[1] == pytest.approx(math.sqrt(25.0 + (0.3 * s) ** 2))
+    assert h[1] == pytest.approx(math.sqrt(25.0 + 0.09 * (s**2 + common**2)))
     # the CE90 factor is the circular normal's: P(r <= 2.1460 sigma) = 0.9
     assert 1 - math.exp(-(CE90_FACTOR**2) / 2) == pytest.approx(0.9, abs=1e-4)
 
@@ -312,5 +318,5 @@ def test_cli_block_reference_table(scene, tmp_path):
     assert set(m["kind"]) == {"tp", "gcp"}
     gcp = m["kind"] == "gcp"
     assert set(m["id"][gcp]) == set(g["id"]) and set(m["image"][gcp]) == {"a", "b"}
-    assert (g["sigma_e"] > 5.0 / CE90_FACTOR).all()
+    assert np.allclose(g["sigma_shift_e"], 5.0 / CE90_FACTOR)
     assert "tie points" in result.stderr and "reference control points" in result.stderr

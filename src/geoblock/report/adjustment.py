@@ -28,6 +28,7 @@ from geoblock.adjust.statistics import AccuracyStats, ImageResidualStats
 from geoblock.io import files
 from geoblock.io.models import write_model
 from geoblock.models.curves import CorrectionCurve, HasCorrectionCurves
+from geoblock.models.uncertainty import ModelPosterior
 from geoblock.report.figures import correction_curve_plot, error_vector_plot, to_local_en
 from geoblock.report.tables import stats_table
 from geoblock.typing import ArrayLike
@@ -524,6 +525,10 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
                  figures: bool = True) -> dict[str, Path]:
     """Write ``models/<image>.json``, ``report.json``, ``report.md`` and the PNG figures.
 
+    Each model JSON carries its posterior covariance (a ``"posterior"`` entry,
+    :class:`~geoblock.models.uncertainty.ModelPosterior`), which
+    ``geoblock ortho --accuracy-layer`` propagates to the ground.
+
     The files are written into a temporary directory beside ``out_dir`` and moved into place
     at the end (:func:`geoblock.io.files.atomic_directory`), so an error leaves ``out_dir``
     as it was. An existing ``out_dir`` is replaced as a whole, and so only when it is empty
@@ -545,7 +550,11 @@ def write_result(result: BlockResult, out_dir: str | os.PathLike[str], *,
     with files.atomic_directory(out, "adjustment output ", replaces=_previous_output) as tmp:
         files.make_directory(tmp / "models")
         for image, model in result.models.items():
-            write_model(model, tmp / "models" / f"{image}.json")
+            # the posterior covariance travels with the model: geoblock ortho
+            # --accuracy-layer propagates it (geoblock.models.uncertainty)
+            posterior = ModelPosterior.from_block_result(result, image,
+                                                         source=f"geoblock adjust: {title}")
+            write_model(model, tmp / "models" / f"{image}.json", posterior=posterior)
             written[f"model:{image}"] = out / "models" / f"{image}.json"
         figs = _figures(result, tmp) if figures else {}
         for name in figs.values():
