@@ -222,7 +222,9 @@ class ReferenceControl:
         rejected = ", ".join(f"{n} {c.get(n, 0)}" for n in REFERENCE_REJECTIONS if c.get(n, 0))
         matched = sum(m.status == "matched" for m in self.images)
         s = np.asarray(self.ground["sigma_e"])
-        sig = f"; sigma_e {float(np.median(s)):.2f} m" if s.size else ""
+        sig = (f"; sigma_e {float(np.median(s)):.2f} m each and "
+               f"{self.accuracy_ce90_m / CE90_FACTOR:.2f} m common (the reference's CE90 / "
+               f"{CE90_FACTOR})" if s.size else "")
         rate = len(self) / self.seconds if self.seconds > 0 else math.inf
         return (f"{len(self)} reference control points in {matched} of {len(self.images)} "
                 f"image(s) from {Path(self.reference).name} ({self.gsd_reference_m:g} m, CE90 "
