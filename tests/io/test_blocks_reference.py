@@ -45,6 +45,8 @@ def test_reference_table_is_read_relative_to_the_file(tmp_path):
     ('path = "a.tif"\naccuracy_ce90_m = nan', "'reference.accuracy_ce90_m' must be a number > 0"),
     ('path = "a.tif"\naccuracy_ce90_m = "8 m"', "'accuracy_ce90_m' must be a integer or float"),
     ('path = "a.tif"\nband = 0', "'reference.band' must be an integer >= 1"),
+    ('path = "a.tif"\nlocal_accuracy_ce90_m = -2.0',
+     "'reference.local_accuracy_ce90_m' must be a number >= 0"),
     ('path = "a.tif"\nband = true', "'band' must be a integer"),
     ('path = ""', "reference.path: empty path"),
 ])
@@ -58,12 +60,14 @@ def test_bad_reference_tables_are_refused_naming_the_field(tmp_path, table, mess
 @settings(max_examples=40, deadline=None)
 @given(accuracy=st.one_of(st.none(), st.floats(min_value=1e-3, max_value=1e4)),
        band=st.one_of(st.none(), st.integers(min_value=1, max_value=64)),
+       local=st.one_of(st.none(), st.floats(min_value=0.0, max_value=1e4)),
        name=st.text(st.characters(whitelist_categories=("L", "N"), whitelist_characters="_-. "),
                     min_size=1, max_size=20).filter(lambda t: t.strip(" .") == t and t))
-def test_reference_round_trips_through_write_block(tmp_path_factory, accuracy, band, name):
+def test_reference_round_trips_through_write_block(tmp_path_factory, accuracy, band, local,
+                                                  name):
     tmp = tmp_path_factory.mktemp("ref")
     block = Block((BlockImage("right", tmp / "right.geom"),), "rpcv0",
-                  reference=BlockReference(tmp / "refs" / f"{name}.tif", accuracy, band))
+                  reference=BlockReference(tmp / "refs" / f"{name}.tif", accuracy, band, local))
     path = write_block(tmp / "block.toml", block)
     back = read_block(path)
     assert back.reference == block.reference

@@ -181,6 +181,10 @@ def test_sigma_formula():
     assert common == pytest.approx(8.5 / 2.1460)
     assert h[0] == pytest.approx(5.0)
     assert h[1] == pytest.approx(math.sqrt(25.0 + 0.09 * (s**2 + common**2)))
+    # a stated local (point-to-point) accuracy joins each point's own sigma, not the common one
+    s2, _, common2 = reference_sigmas(8.5, 0.2, 10.0, 5.0, [0.0], local_accuracy_ce90_m=3.0)
+    assert s2 == pytest.approx(math.hypot(3.0 / 2.1460, 2.0))
+    assert common2 == common
     # the CE90 factor is the circular normal's: P(r <= 2.1460 sigma) = 0.9
     assert 1 - math.exp(-(CE90_FACTOR**2) / 2) == pytest.approx(0.9, abs=1e-4)
 
@@ -278,6 +282,13 @@ def test_cli_one_image_with_reference(scene, tmp_path):
     g, m = read_points(ground), read_points(img)
     assert set(g["source"]) == {"reference:ref_10.tif"} and set(m["kind"]) == {"gcp"}
     assert np.array_equal(g["id"], m["id"]) and set(m["image"]) == {"a"}
+    assert np.allclose(g["sigma_shift_e"], 5.0 / CE90_FACTOR)
+    local = _run(base[:-1] + [tmp_path / "image2.csv", "--reference-accuracy", "5",
+                              "--reference-local-accuracy", "3", "--ground-output",
+                              tmp_path / "ground2.csv"])
+    assert local.exit_code == 0, local.output
+    g2 = read_points(tmp_path / "ground2.csv")
+    assert np.allclose(g2["sigma_e"], np.hypot(3.0 / CE90_FACTOR, g["sigma_e"]))
     cand = read_points(tmp_path / "cand.csv")
     assert (cand["status"] == "kept").sum() == g["id"].size
     points, measurements = read_observations(ground, img)

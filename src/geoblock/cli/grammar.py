@@ -50,6 +50,8 @@ OPTIONS: dict[str, str] = {
     # reference orthoimage
     "--reference": "a georeferenced orthoimage ground control is measured on",
     "--reference-accuracy": "the reference orthoimage's absolute accuracy, CE90, metres",
+    "--reference-local-accuracy": "the reference orthoimage's local (point-to-point) accuracy, "
+                                  "CE90, metres",
     "--reference-band": "the band of the reference orthoimage matched, 1-based",
     "--contribution": "a raster of the index of the ortho each mosaic pixel came from",
     "--write": "also write the model as FORMAT:PATH (a plugin's writer)",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -90,6 +91,12 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               help="The reference's absolute accuracy, CE90 in metres: every control point is "
               "weighted by it. Required with --reference unless the block file's "
               "[reference] table gives accuracy_ce90_m.")
+@click.option("--reference-local-accuracy", "reference_local_accuracy", type=float,
+              metavar="CE90_M", default=None,
+              help="The reference's local (point-to-point) accuracy, CE90 in metres, added to "
+              "each control point's own sigma; --reference-accuracy is an error common to all "
+              "its points. Default the block file's reference.local_accuracy_ce90_m, else 0 "
+              "(the matching's precision alone).")
 @click.option("--reference-band", type=click.IntRange(min=1), default=None, metavar="N",
               help="Band of the reference matched (1-based). Default the block file's "
               "reference.band, else 1.")
@@ -112,7 +119,8 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
           search_px: float | None, max_keypoints: int, contrast_threshold: float, ratio: float,
           min_score: float, order: int, k_sigma: float, sigma_px: float | None,
           ictp_share: float, id_prefix: str, reference: str | None,
-          reference_accuracy: float | None, reference_band: int | None,
+          reference_accuracy: float | None, reference_local_accuracy: float | None,
+          reference_band: int | None,
           ground_output: str | None, reference_diagnostics: str | None,
           diagnostics: str | None, overwrite: bool) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
@@ -173,7 +181,7 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
 
         spec = read_block(inputs[0])
     ref = _reference(spec, inputs[0] if block_mode else None, reference, reference_accuracy,
-                     reference_band, ground_output)
+                     reference_band, ground_output, reference_local_accuracy)
     if ref is not None:
         ground_output = ref["ground_output"]
     if reference_diagnostics is not None and ref is None:
@@ -222,7 +230,10 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         control = match_reference(images, ref["path"], dem,
                                   reference_accuracy_ce90_m=ref["accuracy"],
                                   dem_sigma_m=float(sigma),
-                                  options=ReferenceOptions(band=ref["band"]), progress=say)
+                                  options=ReferenceOptions(
+                                      band=ref["band"],
+                                      local_accuracy_ce90_m=ref["local_accuracy"]),
+                                  progress=say)
         if result is not None:
             import numpy as np
 
@@ -269,12 +280,14 @@ def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...
 
 
 def _reference(spec: Any, block: str | None, path: str | None, accuracy: float | None,
-               band: int | None, ground_output: str | None) -> dict[str, Any] | None:
+               band: int | None, ground_output: str | None, local_accuracy: float | None = None
+               ) -> dict[str, Any] | None:
     """The reference to match (the option's, else the block's), its accuracy, band and the
     ground output; None without a reference."""
     table = spec.reference if spec is not None else None
     if path is None and table is None:
         for name, given in (("--reference-accuracy", accuracy), ("--reference-band", band),
+                            ("--reference-local-accuracy", local_accuracy),
                             ("--ground-output", ground_output)):
             if given is not None:
                 raise click.UsageError(f"{name} applies with --reference (or a block file's "
@@ -287,6 +300,11 @@ def _reference(spec: Any, block: str | None, path: str | None, accuracy: float |
             accuracy = table.accuracy_ce90_m
         if band is None:
             band = table.band
+    if local_accuracy is None and table is not None and table.local_accuracy_ce90_m is not None:
+        local_accuracy = table.local_accuracy_ce90_m
+    if local_accuracy is not None and not (math.isfinite(local_accuracy) and local_accuracy >= 0):
+        raise click.BadParameter(f"must be a number >= 0 (metres), got {local_accuracy!r}",
+                                 param_hint="--reference-local-accuracy")
     if accuracy is None:
         where = f" (or accuracy_ce90_m in the [reference] table of {block})" if block else ""
         raise click.UsageError(
@@ -301,7 +319,7 @@ def _reference(spec: Any, block: str | None, path: str | None, accuracy: float |
                                    "for the reference control's ground rows")
         ground_output = str(spec.ground_points)
     return {"path": path, "accuracy": float(accuracy), "band": band or 1,
-            "ground_output": ground_output}
+            "local_accuracy": float(local_accuracy or 0.0), "ground_output": ground_output}
 
 
 def _block_dem(spec: Any, name: str) -> Any:

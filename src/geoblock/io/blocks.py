@@ -25,6 +25,7 @@ relative to the block file's directory. Example::
     [reference]               # optional: control from a reference orthoimage (geoblock match)
     path = "gri.tif"          # a georeferenced ortho (any CRS)
     accuracy_ce90_m = 8.0     # its absolute accuracy, CE90 metres (or --reference-accuracy)
+    local_accuracy_ce90_m = 2.0   # optional: its point-to-point accuracy, CE90 metres
     band = 1                  # optional: the band matched (1-based)
 
     [options]                 # the engine's options (ADJUST_OPTIONS), all optional
@@ -212,11 +213,15 @@ class BlockReference:
         point matched on it. None: ``geoblock match --reference-accuracy`` must give it.
     band : int or None
         The band matched (1-based); None: the first.
+    local_accuracy_ce90_m : float or None
+        Its local (point-to-point) accuracy, CE90 metres, added to each control point's own
+        sigma (:attr:`geoblock.match.ReferenceOptions.local_accuracy_ce90_m`); None: 0.
     """
 
     path: Path
     accuracy_ce90_m: float | None = None
     band: int | None = None
+    local_accuracy_ce90_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -312,6 +317,12 @@ def _check(block: Block, where: str) -> None:
             and math.isfinite(ref.accuracy_ce90_m) and ref.accuracy_ce90_m > 0):
         raise BlockFileError(f"{where}: 'reference.accuracy_ce90_m' must be a number > 0 "
                              f"(metres), got {ref.accuracy_ce90_m!r}")
+    if ref is not None and ref.local_accuracy_ce90_m is not None and not (
+            isinstance(ref.local_accuracy_ce90_m, int | float)
+            and not isinstance(ref.local_accuracy_ce90_m, bool)
+            and math.isfinite(ref.local_accuracy_ce90_m) and ref.local_accuracy_ce90_m >= 0):
+        raise BlockFileError(f"{where}: 'reference.local_accuracy_ce90_m' must be a number >= 0 "
+                             f"(metres), got {ref.local_accuracy_ce90_m!r}")
     if ref is not None and ref.band is not None and not (
             isinstance(ref.band, int) and not isinstance(ref.band, bool) and ref.band >= 1):
         raise BlockFileError(f"{where}: 'reference.band' must be an integer >= 1, got "
@@ -456,9 +467,10 @@ def read_block(path: str | os.PathLike[str]) -> Block:
                             f"{where}.path")
         accuracy = _take(ref_raw, "accuracy_ce90_m", (int, float), where)
         band = _take(ref_raw, "band", int, where)
-        _no_more(ref_raw, where, "path, accuracy_ce90_m, band")
+        local = _take(ref_raw, "local_accuracy_ce90_m", (int, float), where)
+        _no_more(ref_raw, where, "path, accuracy_ce90_m, local_accuracy_ce90_m, band")
         reference = BlockReference(ref_path, None if accuracy is None else float(accuracy),
-                                   band)
+                                   band, None if local is None else float(local))
 
     options = _take(data, "options", dict, name, default={})
     outputs_raw = dict(_take(data, "outputs", dict, name, default={}))
@@ -518,6 +530,8 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
         ref: dict[str, Any] = {"path": rel(block.reference.path)}
         if block.reference.accuracy_ce90_m is not None:
             ref["accuracy_ce90_m"] = block.reference.accuracy_ce90_m
+        if block.reference.local_accuracy_ce90_m is not None:
+            ref["local_accuracy_ce90_m"] = block.reference.local_accuracy_ce90_m
         if block.reference.band is not None:
             ref["band"] = block.reference.band
         out["reference"] = ref

@@ -66,6 +66,12 @@ class ReferenceOptions:
     sigma_match_px : float or None
         The matching precision in the sigma formula, reference pixels; None: estimated per
         image (module docstring).
+    local_accuracy_ce90_m : float
+        The reference's local (relative, point-to-point) accuracy, CE90 metres: errors that
+        differ from one point to the next (an ortho's relief displacement where its own DEM
+        was wrong, its seamlines), added to each point's own sigma. 0 (the default): the
+        points' own error is the matching's alone, and the adjustment's sigma0 says how much
+        they scatter beyond it.
     band : int
         Band of the reference matched (1-based).
     image_band : int
@@ -82,6 +88,7 @@ class ReferenceOptions:
     order: int = 1
     k: float = 3.0
     sigma_match_px: float | None = None
+    local_accuracy_ce90_m: float = 0.0
     band: int = 1
     image_band: int = 1
     id_prefix: str = "ref"
@@ -109,6 +116,10 @@ class ReferenceOptions:
              "a number > 0 (or None)")
         need(self.sigma_match_px is None or positive(self.sigma_match_px), "sigma_match_px",
              "a number > 0 (or None)")
+        need(isinstance(self.local_accuracy_ce90_m, int | float)
+             and not isinstance(self.local_accuracy_ce90_m, bool)
+             and math.isfinite(self.local_accuracy_ce90_m) and self.local_accuracy_ce90_m >= 0,
+             "local_accuracy_ce90_m", "a number >= 0 (metres)")
         need(isinstance(self.min_score, int | float) and -1 <= self.min_score <= 1,
              "min_score", "in [-1, 1]")
         need(isinstance(self.id_prefix, str) and bool(self.id_prefix)
@@ -125,14 +136,15 @@ class ReferenceOptions:
 
 
 def reference_sigmas(reference_accuracy_ce90_m: float, sigma_match_px: float,
-                     gsd_reference_m: float, dem_sigma_m: float, slope: Any
-                     ) -> tuple[float, np.ndarray, float]:
+                     gsd_reference_m: float, dem_sigma_m: float, slope: Any,
+                     local_accuracy_ce90_m: float = 0.0) -> tuple[float, np.ndarray, float]:
     """The sigmas of control points from a reference orthoimage (module docstring).
 
     The reference's stated accuracy is a misregistration common to all its points (it does
     not average out over many of them): it is the sigma of a **common shift**
     (``sigma_shift_e/n`` of the ground CSV, one translation per reference estimated by the
-    adjustment); each point's own horizontal error is the matching's.
+    adjustment); each point's own horizontal error is the matching's and the reference's local
+    error.
 
     Parameters
     ----------
@@ -146,12 +158,14 @@ def reference_sigmas(reference_accuracy_ce90_m: float, sigma_match_px: float,
         The DEM's accuracy (1 sigma), metres.
     slope : array_like, (N,)
         ``|grad h|`` of the DEM at the points (metres per metre).
+    local_accuracy_ce90_m : float
+        The reference's local accuracy (CE90, metres; 0: none stated).
 
     Returns
     -------
     sigma_horizontal : float
-        ``sigma_e = sigma_n``: each point's own error, ``sigma_match_px * gsd_reference_m``,
-        metres.
+        ``sigma_e = sigma_n``: each point's own error, ``sqrt((local_CE90 / 2.1460)**2 +
+        (sigma_match_px * gsd_reference_m)**2)``, metres.
     sigma_h : ndarray, (N,)
         ``sqrt(sigma_DEM**2 + (|grad h| * sigma_total)**2)``, metres, with ``sigma_total``
         the point's whole horizontal sigma (own and common: the height the DEM gives under a
@@ -165,7 +179,8 @@ def reference_sigmas(reference_accuracy_ce90_m: float, sigma_match_px: float,
     >>> round(s, 3), [round(v, 3) for v in h], round(c, 3)
     (2.0, [5.0, 5.585], 4.66)
     """
-    own = float(sigma_match_px) * float(gsd_reference_m)
+    own = math.hypot(float(local_accuracy_ce90_m) / CE90_FACTOR,
+                     float(sigma_match_px) * float(gsd_reference_m))
     common = float(reference_accuracy_ce90_m) / CE90_FACTOR
     g = np.abs(np.asarray(slope, float))
     return own, np.sqrt(dem_sigma_m**2 + (g * math.hypot(own, common)) ** 2), common

@@ -364,7 +364,7 @@ def match_one(im: MatchImage, ref: ReferenceOrtho, dem: DemSource, ce90: float,
         warnings.simplefilter("ignore")
         ic, pstat = im.model.project_with_status(q_lon, q_lat, q_h)
     own, _, shared = reference_sigmas(ce90, sigma_match if math.isfinite(sigma_match) else 0.0,
-                                      ref.gsd_m, 1.0, 0.0)
+                                      ref.gsd_m, 1.0, 0.0, options.local_accuracy_ce90_m)
     s_hor = math.hypot(own, shared)  # the whole horizontal uncertainty of the position
     step = max(s_hor, 0.5 * float(getattr(dem, "resolution_m", 0.0) or 0.0), 1.0)
     slope = _slope(dem, lon, lat, step) if kept.size else np.zeros(0)

@@ -54,9 +54,11 @@ rows carry it as the sigma of a common shift, per axis::
 
 which the adjustment estimates as one translation per reference (the ``source``), with that
 prior; ``2.1460`` is the circular-normal CE90 factor (NSSDA: ``CE90 = 2.1460 sigma`` for
-equal axes). Each point's own horizontal error is the matching's::
+equal axes). Each point's own horizontal error is the matching's, and the reference's local
+(point-to-point) error when it is stated (``local_CE90``,
+:attr:`ReferenceOptions.local_accuracy_ce90_m`, default 0)::
 
-    sigma_e = sigma_n = sigma_match_px * gsd_ref
+    sigma_e = sigma_n = sqrt((local_CE90 / 2.1460)^2 + (sigma_match_px * gsd_ref)^2)
 
 ``sigma_match_px`` the matching precision in reference pixels, by default the robust scale of
 the kept offsets' residuals about the fitted polynomial across the parallax direction (what
@@ -355,7 +357,8 @@ def match_reference(images: Mapping[str, Any] | Sequence[MatchImage], reference:
         if not sel.any():
             continue
         s, h, _ = reference_sigmas(reference_accuracy_ce90_m, res.sigma_match_px,
-                                   ref.gsd_m, dem_sigma_m, cat["slope"][sel])
+                                   ref.gsd_m, dem_sigma_m, cat["slope"][sel],
+                                   options.local_accuracy_ce90_m)
         sigma_e[sel] = s
         sigma_h[sel] = h
     source = f"reference:{ref.name}"
