@@ -99,6 +99,13 @@ EXPERIMENTS: dict[str, _Entry] = {
                      "wander on the three SPOT-5 strips (dg vs jitter, with and without GCPs, "
                      "ICP RMSE against the posterior over 20 seeds)",
                      {"small": "~95 s CPU, 110 s at load 3.6 (20 seeds)"}),
+    "reference": _Entry("geoblock_papers.reference",
+                        "Beyond the papers (issue 28): no surveyed GCP, control from a "
+                        "reference ortho misregistered by a known shift (Teo, Aguilar and a "
+                        "4-image RPC block): ICP RMSE against the reference's error, the "
+                        "posterior's prediction, the matches, GSD and error sweeps, the "
+                        "accuracy layer against the ortho's error",
+                        {}),
 }
 
 
