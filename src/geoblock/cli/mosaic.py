@@ -173,15 +173,13 @@ def _accuracy_inputs(output: str, orthos: tuple[str, ...], asked: str | None,
 
 def _mosaic_tags(layers: list[str], method: str, feather_px: float) -> dict[str, str]:
     """The mosaic layer's metadata: the sources' meaning, their covariances and the rule."""
-    import rasterio
-
+    from geoblock.io.rasters import cached_dataset
     from geoblock.ortho.accuracy import ACCURACY_TAG
 
     kinds: list[str] = []
     tags: dict[str, str] = {}
     for path in layers:
-        with rasterio.open(path) as ds:
-            mine = ds.tags()
+        mine = cached_dataset(str(path)).tags()
         tags.setdefault(ACCURACY_TAG, mine.get(ACCURACY_TAG, ""))
         kinds.append(mine.get(f"{ACCURACY_TAG}_COVARIANCE", "unknown"))
     rule = ("the first valid source's value" if method == "priority" else

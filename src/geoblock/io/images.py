@@ -936,13 +936,16 @@ def write_image(
     *,
     nodata: float | None = None,
     compress: str | None = "deflate",
-    tags: dict[str, str] | None = None,
+    tags: Mapping[str, str] | None = None,
+    crs: Any = None,
+    transform: Any = None,
 ) -> Path:
-    """Write an in-memory raw (not georeferenced) image as a GeoTIFF, atomically.
+    """Write an in-memory image as a GeoTIFF, atomically: raw, or georeferenced.
 
-    The file has no CRS and no geotransform: pixel ``(row, col)`` of ``array`` is pixel
-    ``(row, col)`` of the file, and its geometry comes from a sensor model (for example a
-    model JSON beside it, :func:`~geoblock.io.write_model`).
+    Without ``crs`` and ``transform`` the file has no CRS and no geotransform: pixel
+    ``(row, col)`` of ``array`` is pixel ``(row, col)`` of the file, and its geometry comes
+    from a sensor model (for example a model JSON beside it, :func:`~geoblock.io.write_model`).
+    With them it is a map (an orthoimage, a reference rendered by the simulator).
 
     Parameters
     ----------
@@ -955,8 +958,12 @@ def write_image(
         Nodata value declared in the file.
     compress : str or None
         GDAL compression.
-    tags : dict of str to str, optional
+    tags : mapping of str to str, optional
         Dataset metadata tags.
+    crs : pyproj.CRS, rasterio CRS or str, optional
+        The map's CRS (with ``transform``).
+    transform : affine.Affine or sequence of 6, optional
+        GDAL-style geotransform (pixel corners), as rasterio's (with ``crs``).
 
     Returns
     -------
@@ -966,7 +973,7 @@ def write_image(
     Raises
     ------
     ValueError
-        ``array`` is not 2-D or 3-D.
+        ``array`` is not 2-D or 3-D, or only one of ``crs`` and ``transform`` is given.
     GeoblockIOError
         The directory does not exist or GDAL cannot write.
     """
@@ -989,6 +996,16 @@ def write_image(
         profile["compress"] = compress
     if nodata is not None:
         profile["nodata"] = nodata
+    if (crs is None) != (transform is None):
+        raise ValueError("write_image: give both crs and transform, or neither")
+    if crs is not None:
+        import rasterio
+        from affine import Affine
+
+        wkt = crs.to_wkt() if hasattr(crs, "to_wkt") else str(crs)
+        profile["crs"] = rasterio.crs.CRS.from_user_input(wkt)
+        profile["transform"] = transform if isinstance(transform, Affine) else \
+            Affine(*tuple(transform)[:6])
     with atomic_path(path) as tmp:
         with open_quietly(tmp, "w", **profile) as dst:
             dst.write(data)

@@ -233,7 +233,7 @@ class ReferenceOrtho:
         return OutputGrid(self.crs, origin, (r1 - r0, c1 - c0))
 
     @classmethod
-    def open(cls, source: Any, band: int = 1) -> ReferenceOrtho:
+    def read(cls, source: Any, band: int = 1) -> ReferenceOrtho:
         """Open a georeferenced raster (any CRS pyproj knows, projected or geographic; any
         dtype; its nodata honoured).
 

@@ -320,7 +320,7 @@ def match_reference(images: Mapping[str, Any] | Sequence[MatchImage], reference:
                 and math.isfinite(value) and value > 0):
             raise MatchError(f"{name} must be a number > 0 (metres), got {value!r}")
     ref = reference if isinstance(reference, ReferenceOrtho) else \
-        ReferenceOrtho.open(reference, options.band)
+        ReferenceOrtho.read(reference, options.band)
     ims = _as_images(images)
     if not ims:
         raise MatchError("match_reference: no image given")

@@ -349,23 +349,11 @@ def render_reference(
 
 def _write(path: Path, pixels: np.ndarray, grid: Grid, shift: tuple[float, float],
            gsd: float) -> Path:
-    import rasterio
+    from geoblock.io.images import write_image
 
-    from geoblock.io._atomic import atomic_path
-
-    rows, cols = pixels.shape
-    profile: dict[str, Any] = {
-        "driver": "GTiff", "width": cols, "height": rows, "count": 1,
-        "dtype": pixels.dtype.name, "crs": rasterio.crs.CRS.from_wkt(grid.crs.to_wkt()),
-        "transform": grid.transform, "compress": "deflate",
-    }
-    if max(rows, cols) > 512:
-        profile.update(tiled=True, blockxsize=256, blockysize=256)
-    with atomic_path(path, "reference ") as tmp, rasterio.open(tmp, "w", **profile) as dst:
-        dst.write(pixels, 1)
-        dst.update_tags(GEOBLOCK_SIMULATED="reference ortho rendered by "
-                        "geoblock.simulate.reference",
-                        GEOBLOCK_REFERENCE_SHIFT_E_M=repr(shift[0]),
-                        GEOBLOCK_REFERENCE_SHIFT_N_M=repr(shift[1]),
-                        GEOBLOCK_REFERENCE_GSD_M=repr(gsd))
-    return path
+    return write_image(path, pixels, crs=grid.crs, transform=grid.transform,
+                       tags={"GEOBLOCK_SIMULATED": "reference ortho rendered by "
+                                                   "geoblock.simulate.reference",
+                             "GEOBLOCK_REFERENCE_SHIFT_E_M": repr(shift[0]),
+                             "GEOBLOCK_REFERENCE_SHIFT_N_M": repr(shift[1]),
+                             "GEOBLOCK_REFERENCE_GSD_M": repr(gsd)})
