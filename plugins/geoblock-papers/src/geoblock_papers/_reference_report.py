@@ -20,6 +20,11 @@ def _f(x: float, d: int = 2) -> str:
     return f"{x:.{d}f}" if isinstance(x, float | int) and math.isfinite(x) else "-"
 
 
+def _why(failure: str) -> str:
+    """A failure's reason without the temporary reference's path."""
+    return failure.split(" from the reference")[0][:80]
+
+
 def _routes() -> tuple[str, ...]:
     return ("independent", "shift", "consider") if engine_has_shift() else (
         "independent", "consider")
@@ -67,7 +72,7 @@ def _main_rows(runs: Sequence[CaseOutcome], design: ref.Design) -> list[list[Any
             sel = ref._select(runs, block, case)
             if not sel:
                 fails = [o.failure for o in runs if o.block == block and o.case == case]
-                rows.append([block, case.label, "no control: " + (fails[0][:80] if fails
+                rows.append([block, case.label, "no control: " + (_why(fails[0]) if fails
                                                                    else "not run")]
                             + ["-"] * (4 + 2 * len(_routes())))
                 continue
@@ -115,7 +120,7 @@ def _sweep_rows(runs: Sequence[CaseOutcome], design: ref.Design, block: str,
         sel = ref._select(runs, block, case)
         if not sel:
             fail = next((o.failure for o in runs if o.block == block and o.case == case), "")
-            rows.append([case.label, "no control" + (f": {fail[:70]}" if fail else "")]
+            rows.append([case.label, "no control" + (f": {_why(fail)}" if fail else "")]
                         + ["-"] * (2 + width))
             continue
         cells = [case.label, ref._est(sel, "control/n", "").format(0),
@@ -376,10 +381,17 @@ def _sweep_figure(runs: Sequence[CaseOutcome], design: ref.Design) -> Any:
     axes[1].axhspan(4.0 / ref.ICP_FACTOR, 4.0 * ref.ICP_FACTOR, color="0.85", zorder=0)
     axes[1].set(xlabel="reference GSD (m)", ylabel="ICP RMSE 2D (m)", xscale="log",
                 title="against the reference's GSD (4 m error)")
-    axes[1].set_xticks(design.gsds, [f"{g:g}" for g in design.gsds])
+    _gsd_ticks(axes[1], design.gsds)
     axes[0].legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def _gsd_ticks(ax: Any, gsds: Sequence[float]) -> None:
+    from matplotlib.ticker import NullFormatter
+
+    ax.set_xticks(gsds, [f"{g:g}" for g in gsds])
+    ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def _match_figure(runs: Sequence[CaseOutcome], design: ref.Design) -> Any:
@@ -399,7 +411,7 @@ def _match_figure(runs: Sequence[CaseOutcome], design: ref.Design) -> Any:
     axes[1].set(xlabel="reference GSD (m)", ylabel="median matching error (reference px)",
                 xscale="log")
     for ax in axes:
-        ax.set_xticks(design.gsds, [f"{g:g}" for g in design.gsds])
+        _gsd_ticks(ax, design.gsds)
     axes[0].legend(fontsize=8)
     fig.tight_layout()
     return fig
@@ -408,22 +420,33 @@ def _match_figure(runs: Sequence[CaseOutcome], design: ref.Design) -> Any:
 def _layer_figure(record: Mapping[str, list[dict[str, float]]]) -> Any:
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5.5, 5))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.8))
+    colours = {"independent": "tab:red", "shift": "tab:orange", "consider": "tab:green"}
+    markers = {b: m for b, m in zip(BLOCKS, "osD^v", strict=False)}
     hi = 0.0
     for key, bands in record.items():
         if not bands:
             continue
+        block, route = key.split("/")
         p = [b["rms_predicted"] for b in bands]
         e = [b["rms_empirical"] for b in bands]
         hi = max(hi, *p, *e)
-        ax.plot(p, e, "o-", label=key.replace("/", ", "))
-    lo = 0.05
-    x = np.geomspace(lo, max(hi, 1.0) * 1.5, 50)
-    ax.plot(x, x, "k--", lw=1)
-    ax.fill_between(x, x * (1 - ref.LAYER_TOLERANCE), x * (1 + ref.LAYER_TOLERANCE),
-                    color="0.85", zorder=0)
-    ax.set(xscale="log", yscale="log", xlabel="RMS predicted (layer, m)",
-           ylabel="RMS empirical (ortho error at ICPs, m)")
-    ax.legend(fontsize=7)
+        style = {"color": colours.get(route, "k"), "marker": markers.get(block, "o"),
+                 "label": f"{block}, {_ROUTE_SHORT.get(route, route)}"}
+        axes[0].plot(p, e, "-", **style)
+        if route == "consider":
+            axes[1].plot(p, e, "-", **style)
+    x = np.geomspace(0.1, max(hi, 1.0) * 1.5, 50)
+    for ax in axes:
+        ax.plot(x, x, "k--", lw=1)
+        ax.fill_between(x, x * (1 - ref.LAYER_TOLERANCE), x * (1 + ref.LAYER_TOLERANCE),
+                        color="0.85", zorder=0)
+        ax.set(xlabel="RMS predicted by the layer (m)",
+               ylabel="RMS empirical: ortho error at ICPs (m)")
+    axes[0].set(xscale="log", yscale="log", title="every route, quartile bands")
+    axes[0].legend(fontsize=7)
+    axes[1].set(xlim=(3.0, 5.0), ylim=(3.0, 5.0),
+                title="common error propagated (consider), +-20 %")
+    axes[1].legend(fontsize=7)
     fig.tight_layout()
     return fig

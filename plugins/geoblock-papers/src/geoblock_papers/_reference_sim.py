@@ -584,8 +584,9 @@ def run_case(scene: Scene, case: Case, seed: int, workdir: Path, *,
 
     ``layer`` (per weighting, when asked, arrays over the ICP measurements): ``{w}/exact``,
     ``{w}/dem`` and with ``full_layer`` ``{w}/layer`` (:func:`_layer`), ``{w}/ortho_e``,
-    ``{w}/ortho_n`` the ortho errors, ``{w}/check_e``, ``{w}/check_n``, ``{w}/check_cov`` (N, 2, 2) the check errors
-    and their predicted covariance (in :attr:`~geoblock.adjust.BlockResult.check`'s order),
+    ``{w}/ortho_n`` the ortho errors, ``{w}/check_e``, ``{w}/check_n``, ``{w}/check_cov``
+    (N, 2, 2) the check errors and their predicted covariance (in
+    :attr:`~geoblock.adjust.BlockResult.check`'s order),
     ``{w}/vertical_u``, ``{w}/vertical_sigma`` the vertical check; for ``own``
     ``own/pred_consider`` (N, 2, 2) the consider covariance at the ortho positions and
     ``own/check_consider`` at the check rows.
