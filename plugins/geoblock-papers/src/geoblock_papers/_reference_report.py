@@ -443,7 +443,12 @@ def _layer_figure(record: Mapping[str, list[dict[str, float]]]) -> Any:
                         color="0.85", zorder=0)
         ax.set(xlabel="RMS predicted by the layer (m)",
                ylabel="RMS empirical: ortho error at ICPs (m)")
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
     axes[0].set(xscale="log", yscale="log", title="every route, quartile bands")
+    for axis in (axes[0].xaxis, axes[0].yaxis):  # plain numbers: no mathtext fonts needed
+        axis.set_major_formatter(FormatStrFormatter("%g"))
+        axis.set_minor_formatter(NullFormatter())
     axes[0].legend(fontsize=7)
     axes[1].set(xlim=(3.0, 5.0), ylim=(3.0, 5.0),
                 title="common error propagated (consider), +-20 %")
