@@ -57,22 +57,33 @@ def _icp_ratio(result):
 
 
 # ------------------------------------------------------------------ common error of a source
-def test_shift_sigma_makes_the_prediction_cover_a_common_offset():
+@pytest.mark.parametrize("control_shifts", ["consider", "estimate"])
+def test_shift_sigma_makes_the_prediction_cover_a_common_offset(control_shifts):
     # 4 m common offset, 1 m noise, no DEM: nothing in the block can see the offset, so only
-    # the shift unknown makes the posterior honest. Measured: without it the ICPs' RMSE 2D
+    # the shift's sigma makes the posterior honest. Measured: without it the ICPs' RMSE 2D
     # is 4.66 m against 1.81 m predicted (2.6x too optimistic); with sigma_shift = 4/sqrt(2)
-    # per axis (4 m expected 2D) 4.66 against 4.65 m
+    # per axis (4 m expected 2D) 4.66 against 4.65 m (estimated) and 4.66 m (considered)
     plain = adjust(_shifted_block(shift_sigma=0.0, dem=False))
     actual, predicted = _icp_ratio(plain)
     assert actual > 4.0 and actual / predicted > 2.0
     assert plain.shifts == {}
-    shifted = adjust(_shifted_block(shift_sigma=4 / np.sqrt(2), dem=False))
+    shifted = adjust(_shifted_block(shift_sigma=4 / np.sqrt(2), dem=False),
+                     control_shifts=control_shifts)
     actual, predicted = _icp_ratio(shifted)
     assert 0.8 < actual / predicted < 1.25
     sh = shifted.shifts[REF]
-    assert sh.n_points == 24 and sh.solution == "block"
-    assert sh.sigmas[:2] == pytest.approx(4 / np.sqrt(2), rel=0.15)  # unresolvable: the prior
-    assert sh.values[2] == 0.0 and sh.sigmas[2] == 0.0  # no vertical shift sigma
+    assert sh.n_points == 24
+    if control_shifts == "estimate":
+        assert sh.solution == "block"
+        assert sh.sigmas[:2] == pytest.approx(4 / np.sqrt(2), rel=0.15)  # unresolvable
+        assert sh.values[2] == 0.0 and sh.sigmas[2] == 0.0  # no vertical shift sigma
+    else:  # considered: held at 0, its prior stated (never scaled by sigma0)
+        assert sh.solution == "considered"
+        assert np.array_equal(sh.values, np.zeros(3))
+        assert sh.sigmas == pytest.approx([4 / np.sqrt(2), 4 / np.sqrt(2), 0.0], rel=1e-12)
+        # registered to the source: its GCPs' mean error is what the least squares leaves
+        gcp = shifted.check.kind == "GCP"
+        assert abs(np.nanmean(shifted.check.e[gcp])) < 0.3
     # the parameters' posterior covariance carries the shift's uncertainty
     # (the image shifts a0, b0 take it; the affine terms do not change)
     grown = np.diag(shifted.covariance) / np.diag(plain.covariance)
@@ -82,10 +93,31 @@ def test_shift_sigma_makes_the_prediction_cover_a_common_offset():
     assert shifted.covariance.shape == plain.covariance.shape
 
 
+def test_considered_and_estimated_agree_where_the_shift_is_unobservable():
+    # no DEM: the shift is seen by nothing but its prior, so estimating it and considering it
+    # are the same statement; the considered covariance from the sensitivity runs and the
+    # estimated one from the normal matrix agree at the ICPs
+    block = _shifted_block(shift_sigma=3.0, dem=False, seed=2)
+    considered = adjust(block)
+    estimated = adjust(block, control_shifts="estimate")
+    icp = considered.check.kind == "ICP"
+    assert considered.predicted_sigma[icp] == pytest.approx(estimated.predicted_sigma[icp],
+                                                            rel=0.05)
+    # and the accuracy statement says it: CE90 of a 3 m-per-axis common error at least
+    assert considered.accuracy_statement().ce90_predicted > 2.1460 * 3.0 * 0.95
+
+
+def test_control_shifts_must_be_known():
+    from geoblock.errors import AdjustmentError
+
+    with pytest.raises(AdjustmentError, match="control_shifts must be one of"):
+        adjust(_shifted_block(shift_sigma=1.0, dem=False), control_shifts="free")
+
+
 def test_a_dem_resolves_the_common_shift():
     # with the DEM (800 m relief) the TPs' heights fix the block's planimetry: the shift is
     # estimated (measured 2.96, 2.47 +- 2.1 m against the true 2.83, 2.83)
-    r = adjust(_shifted_block(shift_sigma=4 / np.sqrt(2), dem=True))
+    r = adjust(_shifted_block(shift_sigma=4 / np.sqrt(2), dem=True), control_shifts="estimate")
     sh = r.shifts[REF]
     truth = 4 / np.sqrt(2)
     assert np.all(np.abs(sh.values[:2] - truth) < 3 * sh.sigmas[:2])
@@ -94,11 +126,11 @@ def test_a_dem_resolves_the_common_shift():
 
 def test_shift_solution_is_the_same_on_every_path(monkeypatch):
     block = _shifted_block(shift_sigma=2.0, dem=True)
-    dense = adjust(block)
+    dense = adjust(block, control_shifts="estimate")
     monkeypatch.setattr(normal, "DENSE_LIMIT", 1)  # the sparse reduced system
-    sparse = adjust(block)
+    sparse = adjust(block, control_shifts="estimate")
     monkeypatch.setattr(normal, "USE_NUMBA", False)  # the numpy reference
-    numpy_ref = adjust(block)
+    numpy_ref = adjust(block, control_shifts="estimate")
     for other in (sparse, numpy_ref):
         assert other.shifts[REF].values == pytest.approx(dense.shifts[REF].values, abs=1e-6)
         assert other.shifts[REF].sigmas == pytest.approx(dense.shifts[REF].sigmas, rel=1e-6)
@@ -336,7 +368,9 @@ def test_a_vertical_offset_common_to_hcps_is_estimated():
             np.concatenate([np.zeros(len(g)), np.full(pick.size, shift_h)]))
         meas = ImagePoints(m.id, m.image, m.row, m.col, m.sigma_row, m.sigma_col,
                            np.where(np.isin(m.id, pick), "hcp", m.kind))
-        return adjust(Block(b.models, meas, ground, b.dem, b.dem_sigma_m))
+        # the DEM sees a vertical offset of the lidar: estimated, not considered
+        return adjust(Block(b.models, meas, ground, b.dem, b.dem_sigma_m),
+                      control_shifts="estimate")
 
     plain, shifted = run(0.0), run(10.0)
     assert plain.shifts == {}

@@ -66,7 +66,9 @@ from geoblock.adjust._engine import (
     _Solution,
     _Statistics,
 )
+from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust.problem import (
+    CONTROL_SHIFTS,
     DEM_CONTROLS,
     MODES,
     ROBUST,
@@ -112,6 +114,7 @@ def adjust(
     collocation: bool | Mapping[str, Any] = False,
     max_iterations: int = 30,
     tolerance: float = 1e-4,
+    control_shifts: str = "consider",
     progress: Callable[[str], None] | None = None,
 ) -> BlockResult:
     """Adjust a block (module docstring).
@@ -164,6 +167,14 @@ def adjust(
         less than :data:`~geoblock.adjust.problem.CREEP_COST_TOLERANCE` of itself and the
         step is below ``tolerance`` in the undamped normal matrix's metric (no unknown then
         moves by more than ``tolerance`` of its posterior sigma).
+    control_shifts : {"consider", "estimate"}
+        How the common error of a control source (the ground points' ``sigma_shift_*``, a
+        reference orthoimage's misregistration) enters. ``"consider"`` (default): the block
+        is registered to the sources as they are and their common errors are propagated
+        into every posterior figure (one more adjustment per source and axis,
+        :mod:`geoblock.adjust._consider`); the estimate cannot drift where nothing else
+        sees absolute position. ``"estimate"``: three unknowns per source with that prior,
+        for blocks where surveyed GCPs or other sources make them observable.
     progress : callable, optional
         Called with one line per iteration.
 
@@ -197,6 +208,27 @@ def adjust(
         raise AdjustmentError(f"adjust: alpha must be in (0, 1), got {alpha!r}")
     if tp_sigma_m is not None and not (math.isfinite(tp_sigma_m) and tp_sigma_m > 0):
         raise AdjustmentError(f"adjust: tp_sigma_m must be > 0, got {tp_sigma_m!r}")
+    if control_shifts not in CONTROL_SHIFTS:
+        raise AdjustmentError(f"adjust: control_shifts must be one of {CONTROL_SHIFTS}, got "
+                              f"{control_shifts!r}")
+    if control_shifts == "consider" and has_source_shifts(block):
+        options: dict[str, Any] = {
+            "mode": mode, "dem_control": dem_control, "tp_sigma_factor": tp_sigma_factor,
+                   "tp_sigma_m": tp_sigma_m, "tp_prior": tp_prior, "robust": robust,
+                   "robust_k": robust_k, "alpha": alpha, "collocation": collocation,
+                   "max_iterations": max_iterations, "tolerance": tolerance,
+                   "control_shifts": "estimate"}
+        runs = iter(range(1_000_000))
+
+        def run(b: Block) -> BlockResult:
+            first = next(runs) == 0
+            if not first and progress is not None:
+                progress("considering the control sources' common errors: the block "
+                         "adjusted again with a source's points moved by "
+                         f"{CONSIDER_STEP_M:g} m")
+            return adjust(b, **options, progress=progress if first else None)
+
+        return consider_sources(block, run)
     say = progress or (lambda message: None)
     notes: list[str] = []
     start = time.perf_counter()

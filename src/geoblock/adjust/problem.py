@@ -19,7 +19,7 @@ from geoblock.models.protocol import SensorModel
 if TYPE_CHECKING:
     from geoblock.dem.protocol import DemSource
 
-__all__ = ["DEM_CONTROLS", "MODES", "ROBUST", "TP_PRIORS", "Block"]
+__all__ = ["CONTROL_SHIFTS", "DEM_CONTROLS", "MODES", "ROBUST", "TP_PRIORS", "Block"]
 
 MODES = ("block", "single")
 """``block``: all images together with GCPs, TPs and DEM control; ``single``: each image
@@ -29,6 +29,10 @@ DEM_CONTROLS = ("observation", "iterate", "none")
 ROBUST = ("none", "huber", "cauchy", "snooping")
 """Robust estimators of the image measurements."""
 TP_PRIORS = ("floating", "fixed")
+#: How a control source's common error (the ground points' ``sigma_shift_*``) enters:
+#: ``consider`` (propagated into the posterior, the sources held fixed) or ``estimate``
+#: (three unknowns per source with that prior): :mod:`geoblock.adjust._consider`.
+CONTROL_SHIFTS = ("consider", "estimate")
 """Centring of the TPs' weak ground pseudo-observations (:func:`adjust`)."""
 
 #: GCP sigmas below this (metres) are raised to it: a sigma of 0 means "error-free" and

@@ -34,6 +34,7 @@ relative to the block file's directory. Example::
     max_iterations = 30
     sigma_px = 0.5                # measurements without a sigma column
     collocation = { filtering_ratio = 0.2 }
+    control_shifts = "consider"   # consider | estimate: a control source's common error
 
     [outputs]                 # free-form: name = path
     directory = "out"
@@ -658,7 +659,7 @@ ADJUST_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
     "dem_control": (str,), "tp_sigma_factor": (int, float), "tp_sigma_m": (int, float),
     "tp_prior": (str,), "robust": (str,), "robust_k": (int, float), "alpha": (float,),
     "max_iterations": (int,), "tolerance": (int, float), "collocation": (bool, Mapping),
-    "sigma_px": (int, float),
+    "sigma_px": (int, float), "control_shifts": (str,),
 })
 _COLLOCATION_KEYS = ("filtering_ratio", "d_max")
 

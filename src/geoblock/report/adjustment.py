@@ -199,9 +199,11 @@ def _source_tables(result: BlockResult) -> list[str]:
     if result.shifts:
         lines += ["## Common error of each control source", "",
                   "The error shared by all control points of a source (a reference "
-                  "orthoimage's misregistration), estimated as a translation along local east, "
-                  "north and up at the source's centroid (metres; its a-priori sigma from the "
-                  "ground file's sigma_shift_e/n/h).", "",
+                  "orthoimage's misregistration), a translation along local east, north and "
+                  "up at the source's centroid (metres; its a-priori sigma from the ground "
+                  "file's sigma_shift_e/n/h). Solution *considered* (the default): the block "
+                  "is registered to the source and the shift's sigma is propagated into every "
+                  "posterior figure; otherwise estimated in that solution.", "",
                   "| source | solution | points | shift E | shift N | shift H | sigma E | "
                   "sigma N | sigma H | prior sigma E/N/H |",
                   "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
