@@ -767,25 +767,6 @@ class _Engine:
         redundancy = np.einsum("mii->mi", i_wd)
         return _Statistics(q_pp=q_pp, q_xx=q_xx, q_px=q_px, test=test, redundancy=redundancy)
 
-    def posterior(self, system: NormalSystem, st: _Statistics, var0: float,
-                  ) -> tuple[Float64Array, Float64Array]:
-        """Posterior covariances ``(C_pp (K, K), C_xx (J, 3, 3))`` of the parameters and the
-        points (local frame), with ``var0 = sigma0²`` the variance factor of the data.
-
-        The data (image measurements; GCP ground, DEM and HCP height observations, the
-        points' observations) are scaled by ``var0``, the parameters' a-priori
-        pseudo-observations (the ParameterSet's sigmas, the sources' ``sigma_shift``) are
-        not: ``C = (N_data / var0 + N_prior)^-1``. The reduced system with its prior part
-        multiplied by ``var0`` is inverted (:meth:`NormalSystem.parameter_cofactor`) and the
-        points' blocks follow by the same back-substitution as ``st``'s; where there is no
-        prior or ``var0`` is 1 that is ``var0`` times ``st``'s cofactors, which are reused.
-        """
-        if var0 == 1.0 or not np.any(self.s.prior_w):
-            return st.q_pp * var0, st.q_xx * var0
-        q_pp = system.parameter_cofactor(var0)
-        q_xx, _ = system.point_cofactors(q_pp)
-        return q_pp * var0, q_xx * var0
-
     def _reweight(self, ev: _Evaluation, system: NormalSystem, robust: str, k: float,
                   threshold: float) -> bool:
         """Update the robust weights; True if they changed enough to iterate again."""

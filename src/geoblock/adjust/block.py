@@ -27,18 +27,6 @@ quantile. A measurement flagged in a point measured by two images only cannot be
 its partner (both rays carry the same residual), so both are flagged and the point is
 marked ``ambiguous``.
 
-Posterior covariance: ``sigma0²`` (``sqrt(cost / dof)``) is the variance factor of the data,
-not of the prior information, ``C = (N_data / sigma0² + N_prior)^-1`` (variance components).
-The data are the observations of the block's points: the image measurements, the GCPs'
-ground observations, the DEM's and the HCPs' height observations (they measure the scene,
-their misfits make sigma0, and the DEM's and the survey's stated sigmas are as open to
-question as the pointing's). The prior is what the parameters' a-priori pseudo-observations
-say (the ParameterSet's sigmas, covariance or information; the control sources'
-``sigma_shift``): knowledge about the sensors and the sources from outside the block,
-which the block's misfits do not test, so a parameter that only its prior determines keeps
-its prior sigma (scaled by sigma0 it would be stated better than its prior where the
-measurements fit better than their sigmas, worse where they fit worse).
-
 The engine never asks which model it holds: it uses ``project_with_status``,
 ``partials_parameters``, ``partials_ground``, ``parameters`` and ``with_parameters`` only.
 """
@@ -71,7 +59,6 @@ from geoblock.typing import (
 if TYPE_CHECKING:
     pass
 
-from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust._engine import (
     _dem_height,
     _Engine,
@@ -79,6 +66,7 @@ from geoblock.adjust._engine import (
     _Solution,
     _Statistics,
 )
+from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust.problem import (
     CONTROL_SHIFTS,
     DEM_CONTROLS,
@@ -294,7 +282,6 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
     threshold = np.inf
     shifts: dict[str, SourceShift] = {}
     hcp_parts: list[tuple[Any, ...]] = []
-    cov_pp_by_solution: list[Float64Array] = []
     for engine, out, st in solutions:
         s = engine.s
         ev = out.ev
@@ -308,14 +295,11 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         threshold = out.threshold
         sigma0_k = math.sqrt(ev.cost / dof_k) if dof_k > 0 else float("nan")
         var0 = sigma0_k**2 if dof_k > 0 else 1.0
-        # sigma0² scales the data, not the parameters' priors (BlockResult.covariance)
-        cov_pp, cov_xx = engine.posterior(out.system, st, var0)
-        cov_pp_by_solution.append(cov_pp)
         for i, image in enumerate(s.ids):
             model = ev.models[i]
             models[image] = model
             g = s.gidx[i, : s.adj[i].size]
-            q = cov_pp[np.ix_(g, g)]
+            q = st.q_pp[np.ix_(g, g)] * var0
             q_by_image[image] = (s.adj[i], q)
             names = tuple(model.parameters.names[a] for a in s.adj[i])
             parameters[image] = ParameterEstimates(
@@ -331,7 +315,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         red[s.m_sel] = st.redundancy
         test[s.m_sel] = st.test / max(1.0, sigma0_k if np.isfinite(sigma0_k) else 1.0) ** 2
         rot = _local_to_enu_rotation(s.frame, ev.lon, ev.lat)
-        cov_enu = rot @ cov_xx @ np.swapaxes(rot, 1, 2)
+        cov_enu = rot @ (st.q_xx * var0) @ np.swapaxes(rot, 1, 2)
         status = np.full(s.p_id.size, "ok", dtype="<U8")
         status[s.dem_rows & ~np.isfinite(ev.dem.misclosure)] = "no-dem"
         failed = np.zeros(s.p_id.size, bool)
@@ -345,7 +329,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         sh = engine.shifts
         if sh is not None:
             k0 = sh.first
-            q_shift = cov_pp[k0:, k0:]
+            q_shift = st.q_pp[k0:, k0:] * var0
             for i_src, source in enumerate(sh.sources):
                 idx = sh.index[i_src]
                 have = idx >= 0
@@ -366,8 +350,9 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
                               if s.hcp_sigma is not None else np.full(j.size, np.nan),
                               np.sqrt(cov_enu[j, 2, 2])))
     if mode == "block":  # one solution: the full covariance, cross-image terms included
+        var0 = cost / dof if dof > 0 else 1.0
         k_models = solutions[0][0].s.n_model_params  # the source shifts come after
-        covariance = cov_pp_by_solution[0][:k_models, :k_models]
+        covariance = solutions[0][2].q_pp[:k_models, :k_models] * var0
     else:  # independent images: block diagonal
         k = sum(b.shape[0] for b in cov_blocks)
         covariance = np.zeros((k, k))

@@ -126,8 +126,7 @@ class SourceShift:
         Estimated shift e, n, h, metres: the source's coordinates minus the truth the block
         sees (0 on an axis without a shift sigma).
     sigmas : ndarray, (3,)
-        Posterior standard deviations, metres (0 on such an axis); the prior's where nothing
-        but the prior determines the shift, whatever sigma0 (:attr:`BlockResult.covariance`).
+        Posterior standard deviations, metres (0 on such an axis).
     prior_sigmas : ndarray, (3,)
         ``sigma_shift_e, _n, _h``, metres.
     covariance : ndarray, (3, 3)
@@ -228,14 +227,7 @@ class BlockResult:
         The adjusted model of every image.
     parameters : dict of str to ParameterEstimates
     covariance : ndarray, (K, K)
-        Posterior covariance of all adjusted parameters, in the order of ``parameter_index``:
-        ``(N_data / sigma0² + N_prior)^-1`` reduced over the points, ``sigma0²`` the
-        variance factor of the data (image measurements, GCP ground observations, DEM and
-        HCP height observations), not of the parameters' a-priori pseudo-observations
-        (``N_prior``: the ParameterSet's sigmas, the sources' ``sigma_shift``). A parameter
-        its prior alone determines keeps its prior sigma whatever sigma0; one the data
-        determine gets ``sigma0² N^-1``. The points', the shifts' and the predicted
-        covariances derive from it.
+        Posterior covariance of all adjusted parameters, in the order of ``parameter_index``.
     parameter_index : list of (str, str)
         ``(image, parameter name)`` of each row of ``covariance``.
     points : PointResults
@@ -250,9 +242,7 @@ class BlockResult:
     ictp : IctpDiscrepancies or None
         ICTP relative accuracy through the adjusted models and the DEM.
     sigma0 : float
-        Posterior standard deviation of unit weight, ``sqrt(cost / dof)`` over every
-        observation (the priors' terms included); the covariances scale the data by its
-        square (``covariance``).
+        Posterior standard deviation of unit weight.
     dof : int
     converged : bool
     iterations : int
