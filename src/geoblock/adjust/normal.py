@@ -389,15 +389,8 @@ class NormalSystem:
         return scipy.linalg.cho_solve(factor, rhs / scale, check_finite=False) / scale
 
     # ------------------------------------------------------------------ covariance
-    def parameter_cofactor(self, prior_scale: float = 1.0) -> np.ndarray:
-        """(K, K) ``Q_pp``: the inverse of the reduced system (undamped), the parameters'
-        prior weight ``n_pp_prior`` in it multiplied by ``prior_scale``.
-
-        ``S = S_data + P`` (``P = n_pp_prior``; every other observation, the points' ones
-        included, is in ``S_data`` through the reduction). With ``prior_scale = sigma0²``,
-        ``sigma0² (S_data + sigma0² P)^-1 = (S_data / sigma0² + P)^-1``: the posterior
-        covariance with sigma0² the variance factor of the data only (the block
-        adjustment's); 1 gives ``S^-1``.
+    def parameter_cofactor(self) -> np.ndarray:
+        """(K, K) ``Q_pp``: the inverse of the reduced system (undamped).
 
         Dense whatever the reduced system's storage (the posterior covariance of every
         parameter); with the kernels, a Cholesky inverse in place: four (K, K) arrays at the
@@ -407,11 +400,6 @@ class NormalSystem:
             reduced = reduced.toarray()
             reduced += reduced.T  # the triplets' sums are symmetric to rounding only
             reduced *= 0.5
-            if prior_scale != 1.0:
-                reduced += (prior_scale - 1.0) * np.asarray(self.n_pp_prior, dtype=np.float64)
-        elif prior_scale != 1.0:  # a new array: self.reduced is the solution's
-            reduced = reduced + (prior_scale - 1.0) * np.asarray(self.n_pp_prior,
-                                                                  dtype=np.float64)
         if reduced.shape[0] == 0:
             return np.zeros((0, 0))
         scale = np.sqrt(np.diag(reduced))
