@@ -19,6 +19,7 @@ All figures are in metres; east/north/up are local to each point.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -96,6 +97,23 @@ def circular_error_cdf(radius: ArrayLike, covariance: ArrayLike) -> Float64Array
     return np.clip(out, 0.0, 1.0)
 
 
+def _quantile(cdf: Callable[[float], float], p: float, hi: float) -> float:
+    """The radius ``r`` in ``[0, hi]`` with ``cdf(r) = p`` (``cdf`` non-decreasing), by
+    bisection to :data:`_TOLERANCE` relative, at most :data:`_MAX_ITERATIONS` halvings."""
+    if hi == 0.0:
+        return 0.0
+    lo = 0.0
+    for _ in range(_MAX_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        if cdf(mid) < p:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= _TOLERANCE * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
 def predicted_ce(covariance: ArrayLike, p: float = 0.90) -> float:
     """The circular error at probability ``p`` that horizontal covariances predict.
 
@@ -119,18 +137,7 @@ def predicted_ce(covariance: ArrayLike, p: float = 0.90) -> float:
     if not len(cov):
         return float("nan")
     hi = CE95_FACTOR * math.sqrt(float(np.max(cov[:, 0, 0] + cov[:, 1, 1]))) * 4.0
-    if hi == 0.0:
-        return 0.0
-    lo = 0.0
-    for _ in range(_MAX_ITERATIONS):
-        mid = 0.5 * (lo + hi)
-        if float(np.mean(circular_error_cdf(mid, cov))) < p:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo <= _TOLERANCE * hi:
-            break
-    return 0.5 * (lo + hi)
+    return _quantile(lambda r: float(np.mean(circular_error_cdf(r, cov))), p, hi)
 
 
 def predicted_le(sigma_up: ArrayLike, p: float = 0.90) -> float:
@@ -155,21 +162,10 @@ def predicted_le(sigma_up: ArrayLike, p: float = 0.90) -> float:
     s = s[np.isfinite(s)]
     if not s.size:
         return float("nan")
-    hi = 4.0 * float(s.max()) * LE95_FACTOR
-    if hi == 0.0:
-        return 0.0
-    lo = 0.0
     safe = np.where(s > 0, s, 1.0)
-    for _ in range(_MAX_ITERATIONS):
-        mid = 0.5 * (lo + hi)
-        cdf = np.where(s > 0, erf(mid / (math.sqrt(2.0) * safe)), 1.0)
-        if float(cdf.mean()) < p:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo <= _TOLERANCE * hi:
-            break
-    return 0.5 * (lo + hi)
+    return _quantile(
+        lambda r: float(np.where(s > 0, erf(r / (math.sqrt(2.0) * safe)), 1.0).mean()), p,
+        4.0 * float(s.max()) * LE95_FACTOR)
 
 
 def _finite(values: ArrayLike) -> Float64Array:
