@@ -16,6 +16,13 @@ variant)``); :func:`geoblock.simulate.scenario.preset` parses it into a
 ``chen1993-spot1a``
     Chen & Lee (1993): one SPOT 1A scene (10 m, 6000 x 6000 px) over 950 m of relief, 21 GCPs
     and check points, a 40 m DTM.
+``continental-spot-100``
+    A block of 10 strips x 10 scenes of a SPOT-like 20 m sensor (60 x 60 km scenes, 25 % side
+    and 10 % along-track overlap) over 600 x 600 km of France, laid out as the large
+    points-only blocks of :mod:`geoblock.simulate.large` (``continental-spot-1000``,
+    ``continental-spot-10000``: :data:`~geoblock.simulate.large.LARGE_PRESETS`): rendered
+    (small: 400 x 400 px scenes at 150 m, a few minutes on two cores) for matching, 30-60 TPs
+    per overlapping pair, a GCP and two ICPs per image, a 1 km DEM.
 
 The images' on-board errors are ``realistic`` (biases and drifts plus the attitude wander,
 look-angle and orbital-period ephemeris errors measured on real products: the sensor presets'
@@ -56,6 +63,7 @@ SENSOR_PRESETS: dict[str, OrbitSensorSpec] = {
     "spot5-strip3": _sensors.SPOT5_STRIPS[2],
     "quickbird": _sensors.QUICKBIRD,
     "spot1a": _sensors.SPOT1A,
+    "spot-hrg20": _sensors.SPOT_HRG20,
 }
 
 #: Sizes of the demo's scenario: ``small`` (the teo2010-spot5 small preset) and ``tiny``
@@ -149,15 +157,58 @@ def _chen(variant: str) -> dict[str, Any]:
     }
 
 
+def _continental(variant: str) -> dict[str, Any]:
+    from geoblock.simulate.large import LargeBlockSpec, layout
+
+    small = variant == "small"
+    scale = 7.5 if small else 1.0  # 400 x 400 px at 150 m, or 3000 x 3000 at 20 m
+    spec = LargeBlockSpec(name="continental-spot-100", strips=10, scenes=10, tps=0, seed=100)
+    lay = layout(spec)
+    images = []
+    for i, image_id in enumerate(lay.ids.tolist()):
+        images.append({"id": image_id, "preset": "spot-hrg20",
+                       **({"scale": scale} if small else {}),
+                       "centre_lon": round(float(lay.lon[i]), 7),
+                       "centre_lat": round(float(lay.lat[i]), 7),
+                       "incidence_deg": round(float(lay.incidence_deg[i]), 4),
+                       "epoch": lay.epoch[i]})
+    return {
+        "name": f"continental-spot-100-{variant}",
+        "description": (
+            "10 strips x 10 scenes of a SPOT-like 20 m sensor (60 x 60 km scenes, 25 % side "
+            "and 10 % along-track overlap, incidence within +-5 deg) over 600 x 600 km of "
+            "France, 0-2500 m fractal terrain, a 1 km DEM, a GCP and two ICPs per image, "
+            "30-60 TPs and 3-6 ICTPs per overlapping pair"
+            + (" (small: 400 x 400 px scenes at 150 m)" if small else "")
+        ),
+        "seed": 100,
+        "method": "dg",
+        "images": images,
+        "terrain": {"kind": "fractal", "relief": [0.0, 2500.0], "hurst": 0.8,
+                    "resolution_m": 250.0 if small else 100.0, "vertical": "ellipsoid",
+                    "margin_m": 5000.0},
+        "dems": [{"name": "dem1000", "spacing_m": 1000.0, "rmse_z": 10.0}],
+        "points": {"gcp": 1, "icp": 2, "design": "random", "cells": 1, "tp": [30, 60],
+                   "ictp": [3, 6], "sigma_px": 0.3 / scale, "sigma_e": 1.0,
+                   "sigma_n": 1.0, "sigma_h": 1.0},
+        "render": {"enabled": True, "dtype": "uint8", "noise_dn": 1.0,
+                   "texture_scale_px": 1.0},
+        "report": {"distance_plot": False, "gcp_study": False},
+    }
+
+
 #: Named scenario presets: name -> one-line description.
 PRESETS: dict[str, str] = {
     "teo2010-spot5": "Teo et al. 2010: three SPOT-5 strips, 0-3800 m, 40 m DEM, GCP/ICP/TP/ICTP",
     "aguilar2007-quickbird": "Aguilar et al. 2007: QuickBird basic, 45 GCPs 3x3, 79 ICPs, "
                              "2/5/20 m DEMs",
     "chen1993-spot1a": "Chen & Lee 1993: SPOT 1A, 21 GCPs, check points, 950 m relief",
+    "continental-spot-100": "10 x 10 SPOT-like 20 m scenes over 600 x 600 km, 30-60 TPs per "
+                            "overlap, rendered for matching",
 }
 _PRESET_BUILDERS: dict[str, Callable[[str], dict[str, Any]]] = {
     "teo2010-spot5": _teo, "aguilar2007-quickbird": _aguilar, "chen1993-spot1a": _chen,
+    "continental-spot-100": _continental,
 }
 
 

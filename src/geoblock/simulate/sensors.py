@@ -68,6 +68,7 @@ __all__ = [
     "SPOT1A_SMALL",
     "SPOT5_STRIPS",
     "SPOT5_STRIPS_SMALL",
+    "SPOT_HRG20",
     "GroundError",
     "OnboardErrors",
     "OrbitSensorSpec",
@@ -686,3 +687,16 @@ SPOT1A = OrbitSensorSpec(
 SPOT5_STRIPS_SMALL: tuple[OrbitSensorSpec, ...] = tuple(s.scaled(40) for s in SPOT5_STRIPS)
 QUICKBIRD_SMALL = QUICKBIRD.scaled(40)
 SPOT1A_SMALL = SPOT1A.scaled(10)
+#: A SPOT-like 20 m scene (SPOT 4 HRVIR / SPOT 5 HRG multispectral: 60 x 60 km, 3000 x 3000
+#: px at nadir), 832 km, 98.7 deg, descending, over France; on-board 2-D RMSE 30 m with a 10 %
+#: share of along-track drift and SPOT-5's realistic errors (wander, look-angle and DIODE
+#: ephemeris errors, the look-angle error at the 20 m detector pitch). The sensor of the
+#: large blocks (:mod:`geoblock.simulate.large`) and the ``continental-spot-100`` preset.
+SPOT_HRG20 = OrbitSensorSpec(
+    name="spot-hrg20", altitude_m=832e3, inclination_deg=98.7, ascending=False,
+    centre_lon=2.5, centre_lat=46.5, gsd_m=20.0, shape=(3000, 3000), incidence_deg=0.0,
+    jitter_amplitude_rad=5e-7, jitter_frequency_hz=1.0, onboard_rmse_m=30.0,
+    onboard_drift_share=0.1, epoch="2005-07-01T10:30:00Z", seed=31,
+    look_error_rad=(_onboard.LOOK_ERROR_SPOT5_PX[0] * 20.0 / 832e3,
+                    _onboard.LOOK_ERROR_SPOT5_PX[1] * 20.0 / 832e3),
+)
