@@ -98,6 +98,11 @@ OPTIONS: dict[str, str] = {
     # matching
     "--search": "how far the models may disagree, pixels",
     "--max-keypoints": "keypoints per image",
+    "--min-overlap": "the smallest overlap of a pair of images matched, share of the smaller",
+    "--max-pairs-per-image": "the pairs matched per image at most, largest overlaps first",
+    "--min-convergence": "the smallest angle between two images' lines of sight, degrees",
+    "--max-convergence": "the largest angle between two images' lines of sight, degrees",
+    "--pairs-only": "print the pair graph and stop before matching",
     "--contrast-threshold": "SIFT's contrast threshold",
     "--ratio": "Lowe's ratio test",
     "--min-score": "the smallest correlation of a refined match",

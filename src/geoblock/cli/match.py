@@ -108,6 +108,26 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               help="Also write every reference candidate: image, reference row/col, offset "
               "(warped image minus reference, reference pixels), correlation and status "
               "(kept, nodata, correlation, offset).")
+@click.option("--min-overlap", type=click.FloatRange(0.0, 1.0), default=None,
+              metavar="FRACTION",
+              help="Match only pairs whose footprints on the DEM overlap by at least this share "
+              "of the smaller one. Default the block file's match.min_overlap, else 0.1.")
+@click.option("--max-pairs-per-image", type=click.IntRange(min=0), default=None, metavar="N",
+              help="Match at most N pairs per image, the largest overlaps first (0: no cap); "
+              "a spanning forest of the overlap graph is kept whatever N, so the cap never "
+              "splits the block. Default the block file's match.max_pairs_per_image, else 10.")
+@click.option("--min-convergence", "min_convergence", type=click.FloatRange(0.0, 180.0),
+              default=None, metavar="DEG",
+              help="Skip pairs whose lines of sight meet at less than DEG at their overlap's "
+              "centre (for stereo; tie points need no convergence). Default 0.")
+@click.option("--max-convergence", "max_convergence", type=click.FloatRange(0.0, 180.0),
+              default=None, metavar="DEG",
+              help="Skip pairs whose lines of sight meet at more than DEG (views too different "
+              "to match). Default none.")
+@click.option("--pairs-only", is_flag=True,
+              help="Print the pair graph (images, candidate and selected pairs with their "
+              "overlap and convergence, connected components, images with no pair) and stop "
+              "before matching.")
 @click.option("--diagnostics", metavar="CSV", default=None,
               help="Also write every candidate match: positions, the models' prediction, "
               "offset, ratio, correlation, residuals across/along the epipolar direction and "
@@ -122,11 +142,16 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
           reference_accuracy: float | None, reference_local_accuracy: float | None,
           reference_band: int | None,
           ground_output: str | None, reference_diagnostics: str | None,
+          min_overlap: float | None, max_pairs_per_image: int | None,
+          min_convergence: float | None, max_convergence: float | None, pairs_only: bool,
           diagnostics: str | None, overwrite: bool) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
     image-measurement CSV 'geoblock adjust' reads: id, image, row, col, sigma, kind (tp).
 
-    Every overlapping pair (the models' footprints on the DEM) is matched: SIFT keypoints
+    The pairs are chosen from the images' footprints on the DEM (their overlap, the
+    convergence of their lines of sight, at most --max-pairs-per-image per image without
+    splitting the block) and the pair graph is reported before any matching (--pairs-only
+    stops there). Each selected pair is matched: SIFT keypoints
     (OpenCV) spread over the overlap; each keypoint of the first image goes to the DEM
     through its model and into the second image through the other's (the prediction);
     descriptors are compared only with keypoints inside a window around the prediction
@@ -164,7 +189,8 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
     """
     from pathlib import Path
 
-    from geoblock.match.pipeline import MatchOptions, match_block, match_images
+    from geoblock.errors import MatchError
+    from geoblock.match.pipeline import MatchOptions, match_images
 
     def say(message: str) -> None:
         click.echo(message, err=True)
@@ -199,14 +225,32 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         "order": order, "k": k_sigma, "sigma_px": sigma_px, "id_prefix": id_prefix}
     if dem_sigma is not None:
         options["dem_sigma_m"] = dem_sigma
-    opts = MatchOptions(**options)
+    pair_opts: dict[str, Any] = {
+        "min_overlap": min_overlap, "min_convergence_deg": min_convergence,
+        "max_convergence_deg": max_convergence,
+        "max_pairs_per_image": None if max_pairs_per_image is None
+        else (max_pairs_per_image or "none")}
+    if spec is not None:
+        if dem_sigma is None and spec.dem is not None and spec.dem.sigma is not None:
+            options["dem_sigma_m"] = float(spec.dem.sigma)
+        options.update(spec.match)  # the block's [match] table, under the options given
+    options.update({k: (None if v == "none" else v) for k, v in pair_opts.items()
+                    if v is not None})
+    try:
+        opts = MatchOptions(**options)
+    except MatchError as exc:
+        where = f"{inputs[0]}: [match]: " if block_mode else ""
+        raise click.UsageError(f"{where}{exc}") from None
+    if pairs_only:
+        _print_pairs(spec, inputs, models, ids, no_crop, force, dem_source, dem_vertical, geoid,
+                     opts)
+        return
     if block_mode:
         assert spec is not None
-        dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else None
-        if ref is not None:
-            dem = dem if dem is not None else _block_dem(spec, inputs[0])
-            images = _block_images(spec, inputs[0])
-        result = match_block(spec, dem=dem, options=opts, progress=say) \
+        images = _block_images(spec, inputs[0])
+        dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else \
+            _block_dem(spec, inputs[0])
+        result = match_images(images, dem, options=opts, progress=say) \
             if len(spec.images) >= 2 or ref is None else None
     else:
         if len(inputs) < 2 and ref is None:
@@ -247,6 +291,29 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         say(result.summary())
     if control is not None:
         say(control.summary())
+
+
+def _print_pairs(spec: Any, inputs: tuple[str, ...], models: tuple[str, ...],
+                 ids: tuple[str, ...], no_crop: bool, force: bool, dem_source: str | None,
+                 dem_vertical: str | None, geoid: str | None, opts: Any) -> None:
+    """``--pairs-only``: the pair graph on standard output."""
+    from geoblock.match.pairs import select_pairs
+
+    if spec is not None:
+        images = _block_images(spec, inputs[0])
+        dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else \
+            _block_dem(spec, inputs[0])
+    else:
+        if dem_source is None:
+            raise click.UsageError("--dem DEM is required with IMAGEs (the terrain the "
+                                   "footprints are placed on)")
+        images = _images(inputs, models, ids, no_crop, force)
+        dem = open_dem_arg(dem_source, dem_vertical, geoid)
+    graph = select_pairs(images, dem, min_overlap=opts.min_overlap,
+                         max_pairs_per_image=opts.max_pairs_per_image,
+                         min_convergence_deg=opts.min_convergence_deg,
+                         max_convergence_deg=opts.max_convergence_deg)
+    click.echo(graph.report(pairs=True))
 
 
 def _images(paths: tuple[str, ...], models: tuple[str, ...], ids: tuple[str, ...],

@@ -36,6 +36,12 @@ relative to the block file's directory. Example::
     collocation = { filtering_ratio = 0.2 }
     control_shifts = "consider"   # consider | estimate: a control source's common error
 
+    [match]                   # optional: which pairs geoblock match matches (MATCH_OPTIONS)
+    min_overlap = 0.1             # share of the smaller footprint
+    max_pairs_per_image = 10      # the largest overlaps; a spanning forest is always kept
+    min_convergence_deg = 0.0     # lines of sight at the overlap's centre (stereo only)
+    max_convergence_deg = 45.0
+
     [outputs]                 # free-form: name = path
     directory = "out"
 
@@ -79,11 +85,16 @@ from geoblock.io.files import write_text
 if TYPE_CHECKING:
     from geoblock.dem.protocol import DemSource
 
-__all__ = ["ADJUST_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage",
+__all__ = ["ADJUST_OPTIONS", "MATCH_OPTIONS", "Block", "BlockDem", "BlockFileError", "BlockImage",
            "BlockReference", "OpenedBlock", "dumps_toml", "open_block", "read_block",
            "write_block"]
 
 BLOCK_FORMAT_VERSION = 1
+#: Keys of a block file's ``[match]`` table and the types they take (``geoblock match``'s
+#: pair selection, :class:`geoblock.match.MatchOptions`).
+MATCH_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
+    "min_overlap": (int, float), "max_pairs_per_image": (int,),
+    "min_convergence_deg": (int, float), "max_convergence_deg": (int, float)})
 _METHOD = re.compile(r"^[a-z][a-z0-9_-]*$")
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
@@ -252,6 +263,8 @@ class Block:
         Adjust all images together (with TPs and the DEM) or each alone with its GCPs.
     reference : BlockReference or None
         A reference orthoimage ``geoblock match`` takes ground control from.
+    match : mapping
+        ``geoblock match``'s pair-selection options (:data:`MATCH_OPTIONS`; read-only).
     """
 
     images: tuple[BlockImage, ...]
@@ -265,9 +278,11 @@ class Block:
     name: str = ""
     mode: str = "block"
     reference: BlockReference | None = None
+    match: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "images", tuple(self.images))
+        object.__setattr__(self, "match", _readonly(dict(self.match)))
         object.__setattr__(self, "options", _readonly(dict(self.options)))
         outputs = {k: Path(v) for k, v in self.outputs.items()}
         object.__setattr__(self, "outputs", _readonly(outputs))
@@ -473,6 +488,16 @@ def read_block(path: str | os.PathLike[str]) -> Block:
         reference = BlockReference(ref_path, None if accuracy is None else float(accuracy),
                                    band, None if local is None else float(local))
 
+    match = dict(_take(data, "match", dict, name, default={}))
+    for key, value in match.items():
+        kinds = MATCH_OPTIONS.get(key)
+        if kinds is None:
+            raise BlockFileError(f"{name}: unknown key 'match.{key}'; allowed: "
+                                 f"{', '.join(MATCH_OPTIONS)}")
+        if isinstance(value, bool) or not isinstance(value, kinds):
+            raise BlockFileError(f"{name}: 'match.{key}' must be "
+                                 f"{'an integer' if kinds == (int,) else 'a number'}, got "
+                                 f"{value!r}")
     options = _take(data, "options", dict, name, default={})
     outputs_raw = dict(_take(data, "outputs", dict, name, default={}))
     outputs = {}
@@ -481,10 +506,10 @@ def read_block(path: str | os.PathLike[str]) -> Block:
             raise BlockFileError(f"{name}: 'outputs.{key}' must be a path (string), got {value!r}")
         outputs[key] = _resolve(base, value, f"{name}: outputs.{key}")
     _no_more(data, name, "version, name, method, mode, images, points, dem, reference, "
-             "options, outputs")
+             "match, options, outputs")
     try:
         return Block(tuple(images), method, paths["ground"], paths["image"], paths["truth"], dem,
-                     options, outputs, label, mode, reference)
+                     options, outputs, label, mode, reference, match)
     except BlockFileError as exc:
         raise BlockFileError(str(exc).replace("<Block>", name)) from None
 
@@ -536,6 +561,8 @@ def block_to_dict(block: Block, base: str | os.PathLike[str] | None = None) -> d
         if block.reference.band is not None:
             ref["band"] = block.reference.band
         out["reference"] = ref
+    if block.match:
+        out["match"] = dict(block.match)
     if block.options:
         out["options"] = _thaw(block.options)
     if block.outputs:

@@ -1,5 +1,8 @@
 """Tie points from images, guided by the sensor models: ``geoblock match``.
 
+* :func:`select_pairs` - which pairs to match, from the images' footprints on the DEM
+  (:class:`PairGraph`: candidates, overlaps, convergence angles, components;
+  :mod:`geoblock.match.pairs`);
 * :func:`match_images` - tie points between two or more images (:class:`MatchImage`: pixels
   and model) over a DEM; :func:`match_block` - between the images of a block file;
 * :class:`TiePoints` - the measurements (``id, image, row, col, sigma``, kind ``tp``) with
@@ -34,6 +37,7 @@ if TYPE_CHECKING:
     from geoblock.match.features import Keypoints, detect_keypoints
     from geoblock.match.geometry import Overlap, Prediction, local_affine, overlap, predict
     from geoblock.match.lsm import LsmSolution, LsmStatus, least_squares_match
+    from geoblock.match.pairs import Footprint, PairGraph, footprint, select_pairs
     from geoblock.match.pipeline import (
         DEFAULT_SEARCH_PX,
         REJECTIONS,
@@ -72,6 +76,10 @@ _LAZY = {
     "LsmSolution": "geoblock.match.lsm",
     "LsmStatus": "geoblock.match.lsm",
     "least_squares_match": "geoblock.match.lsm",
+    "Footprint": "geoblock.match.pairs",
+    "PairGraph": "geoblock.match.pairs",
+    "footprint": "geoblock.match.pairs",
+    "select_pairs": "geoblock.match.pairs",
     "DEFAULT_SEARCH_PX": "geoblock.match.pipeline",
     "REJECTIONS": "geoblock.match.pipeline",
     "MatchImage": "geoblock.match.pipeline",
@@ -100,12 +108,14 @@ __all__ = [
     "Bias",
     "Consistency",
     "DEFAULT_SEARCH_PX",
+    "Footprint",
     "Keypoints",
     "LsmSolution",
     "LsmStatus",
     "MatchImage",
     "MatchOptions",
     "Overlap",
+    "PairGraph",
     "PairMatches",
     "Prediction",
     "REJECTIONS",
@@ -121,6 +131,7 @@ __all__ = [
     "consistent",
     "detect_keypoints",
     "fit_bias",
+    "footprint",
     "least_squares_match",
     "local_affine",
     "match_block",
@@ -131,5 +142,6 @@ __all__ = [
     "reference_sigmas",
     "refine_matches",
     "seam_shift",
+    "select_pairs",
     "write_tie_points",
 ]

@@ -53,6 +53,7 @@ from geoblock.match.geometry import (
     overlap,
     predict,
 )
+from geoblock.match.pairs import PairGraph, select_pairs
 from geoblock.match.refine import RefineStatus, refine_matches
 from geoblock.match.results import REJECTIONS, PairMatches, TiePoints
 
@@ -119,6 +120,15 @@ class MatchOptions:
     id_prefix : str
         Tie-point ids are ``<id_prefix><number>``, numbered in the order of their reference
         image and position (the same inputs give the same ids).
+    min_overlap : float
+        Pairs overlapping less than this share of the smaller footprint are not matched
+        (:func:`geoblock.match.select_pairs`).
+    max_pairs_per_image : int or None
+        Pairs matched per image at most, the largest overlaps first; a spanning forest of the
+        overlap graph is kept whatever the cap. None: every pair above ``min_overlap``.
+    min_convergence_deg, max_convergence_deg : float, float or None
+        Bounds of the angle between two images' lines of sight at their overlap's centre,
+        degrees; the lower one for stereo only (tie points need none), None: no upper one.
     """
 
     max_keypoints: int = 20000
@@ -136,6 +146,10 @@ class MatchOptions:
     min_score: float = 0.7
     sigma_px: float | None = None
     id_prefix: str = "tp"
+    min_overlap: float = 0.1
+    max_pairs_per_image: int | None = 10
+    min_convergence_deg: float = 0.0
+    max_convergence_deg: float | None = None
 
     def __post_init__(self) -> None:
         def need(ok: bool, name: str, what: str) -> None:
@@ -159,6 +173,15 @@ class MatchOptions:
         need(_positive(self.ratio) and self.ratio <= 1, "ratio", "in (0, 1]")
         need(math.isfinite(self.min_score) and -1 <= self.min_score <= 1, "min_score",
              "in [-1, 1]")
+        need(isinstance(self.min_overlap, int | float) and not isinstance(self.min_overlap, bool)
+             and 0 <= self.min_overlap <= 1, "min_overlap", "in [0, 1]")
+        need(self.max_pairs_per_image is None or (_is_int(self.max_pairs_per_image)
+                                                  and self.max_pairs_per_image >= 1),
+             "max_pairs_per_image", "an integer >= 1 (or None)")
+        top = 180.0 if self.max_convergence_deg is None else self.max_convergence_deg
+        need(isinstance(self.min_convergence_deg, int | float)
+             and isinstance(top, int | float) and 0 <= self.min_convergence_deg <= top <= 180,
+             "min_convergence_deg", "in [0, max_convergence_deg] (degrees, max <= 180)")
         need(isinstance(self.id_prefix, str) and "," not in self.id_prefix
              and self.id_prefix.strip() == self.id_prefix, "id_prefix",
              "a text without commas or surrounding spaces")
@@ -518,16 +541,27 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
 
 
 # ============================================================================== N images
-def _pairs(images: Sequence[MatchImage], dem: DemSource, progress: Progress
+def _pairs(images: Sequence[MatchImage], dem: DemSource, options: MatchOptions,
+           progress: Progress, graph: PairGraph | None = None
            ) -> list[tuple[int, int, Overlap]]:
+    """The selected pairs (:func:`~geoblock.match.pairs.select_pairs` with the options'
+    thresholds, reported before any matching) with their overlaps in pixels."""
+    if graph is None:
+        graph = select_pairs(images, dem, min_overlap=options.min_overlap,
+                             max_pairs_per_image=options.max_pairs_per_image,
+                             min_convergence_deg=options.min_convergence_deg,
+                             max_convergence_deg=options.max_convergence_deg)
+    elif graph.image_ids != tuple(im.id for im in images):
+        raise MatchError(f"the pair graph's images {list(graph.image_ids)[:5]} are not the "
+                         f"images matched {[im.id for im in images][:5]}")
+    progress(graph.report())
     pairs = []
-    for i in range(len(images)):
-        for j in range(i + 1, len(images)):
-            lap = overlap(images[i].model, images[j].model, dem)
-            if lap.fraction > 0:
-                progress(f"  {images[i].id} & {images[j].id}: {100 * lap.fraction:.0f} % of "
-                         f"{images[i].id} overlaps {images[j].id}")
-                pairs.append((i, j, lap))
+    for i, j in graph.selected.tolist():
+        lap = overlap(images[i].model, images[j].model, dem)
+        if lap.fraction > 0:
+            progress(f"  {images[i].id} & {images[j].id}: {100 * lap.fraction:.0f} % of "
+                     f"{images[i].id} overlaps {images[j].id}")
+            pairs.append((i, j, lap))
     return pairs
 
 
@@ -631,7 +665,8 @@ def _tracks(images: Sequence[MatchImage], prepared: Sequence[_Prepared],
 
 def match_images(images: Sequence[MatchImage], dem: DemSource, *,
                  options: MatchOptions | None = None,
-                 progress: Progress | None = None) -> TiePoints:
+                 progress: Progress | None = None,
+                 pairs: PairGraph | None = None) -> TiePoints:
     """Tie points between images, guided by their sensor models and a DEM.
 
     Parameters
@@ -643,7 +678,10 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         Heights above the ellipsoid (:func:`geoblock.open_dem`).
     options : MatchOptions, optional
     progress : callable, optional
-        Called with one-line messages (overlaps, keypoints, each pair's outcome).
+        Called with messages (the pair graph, overlaps, keypoints, each pair's outcome).
+    pairs : PairGraph, optional
+        The pairs to match (:func:`geoblock.match.select_pairs` of these images); default
+        selected with the options' thresholds.
 
     Returns
     -------
@@ -677,8 +715,8 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     if dup:
         raise MatchError(f"duplicate image id(s) {dup}: each image needs its own id")
     say(f"overlaps of {len(images)} images on the DEM")
-    pairs = _pairs(images, dem, say)
-    if not pairs:
+    pairs_ = _pairs(images, dem, options, say, pairs)
+    if not pairs_:
         from geoblock.dem import coverage_gap
 
         gaps = [f"{im.name}: {gap}" for im in images
@@ -690,15 +728,15 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
                          "models, the DEM and that the images show the same area")
     from geoblock.io.images import read_band
 
-    searches = [_search_px(images[i], images[j], lap, options) for i, j, lap in pairs]
+    searches = [_search_px(images[i], images[j], lap, options) for i, j, lap in pairs_]
     prepared = []
     pad = 2 * (options.half_px + options.refine_search_px + 4)  # the correlation's patches
     for k, im in enumerate(images):
         shape = (int(im.image.shape[0]), int(im.image.shape[1]))
-        boxes = [_pad(lap.window_a, pad, shape) for i, _, lap in pairs
+        boxes = [_pad(lap.window_a, pad, shape) for i, _, lap in pairs_
                  if i == k and lap.window_a is not None]
         # B's side: where the models put it, give or take the first pass' window
-        boxes += [_pad(lap.window_b, pad + r, shape) for (_, j, lap), r in zip(pairs, searches,
+        boxes += [_pad(lap.window_b, pad + r, shape) for (_, j, lap), r in zip(pairs_, searches,
                                                                             strict=True)
                   if j == k and lap.window_b is not None]
         if not boxes:
@@ -716,13 +754,13 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         prepared.append(_Prepared(im, kp, read_band(im.image, window),
                                   (window[0], window[2])))
     results, sigmas = [], []
-    for (i, j, lap), search in zip(pairs, searches, strict=True):
+    for (i, j, lap), search in zip(pairs_, searches, strict=True):
         res = _match_pair(prepared[i], prepared[j], dem, lap, search, options, say)
         say("  " + res.summary())
         results.append(res)
         sigmas.append(options.sigma_px if options.sigma_px is not None
                       else max(res.sigma_px / math.sqrt(2.0), 0.05))
-    columns, dropped = _tracks(images, prepared, results, [(i, j) for i, j, _ in pairs], dem,
+    columns, dropped = _tracks(images, prepared, results, [(i, j) for i, j, _ in pairs_], dem,
                                options, sigmas)
     order = columns.pop("_order")
     columns = {k: v[order] for k, v in columns.items()}
@@ -746,7 +784,9 @@ def match_block(block: Any, *, dem: DemSource | None = None,
     dem : DemSource, optional
         Overrides the block's DEM.
     options : MatchOptions, optional
-        Its ``dem_sigma_m`` is the block's ``dem.sigma`` unless given otherwise.
+        Its ``dem_sigma_m`` is the block's ``dem.sigma``, and the pair-selection options
+        (``min_overlap``, ``max_pairs_per_image``, ``min_convergence_deg``,
+        ``max_convergence_deg``) the block's ``[match]`` table's, where left at their defaults.
     progress : callable, optional
 
     Returns
@@ -775,6 +815,13 @@ def match_block(block: Any, *, dem: DemSource | None = None,
     if spec.dem is not None and spec.dem.sigma is not None \
             and options.dem_sigma_m == MatchOptions.dem_sigma_m:
         options = options.replace(dem_sigma_m=float(spec.dem.sigma))
+    from_block = {k: v for k, v in spec.match.items()
+                  if getattr(options, k) == getattr(MatchOptions, k)}
+    if from_block:
+        try:
+            options = options.replace(**from_block)
+        except MatchError as exc:
+            raise BlockFileError(f"{name}: [match]: {exc}") from None
     if dem is None:
         if spec.dem is None:
             raise BlockFileError(f"{name}: no [dem] table, and no DEM given: matching "
