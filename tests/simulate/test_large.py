@@ -178,3 +178,33 @@ def test_continental_rendered_preset() -> None:
                                 seed=100))
     assert [im.id for im in sc.images] == lay.ids.tolist()
     assert sc.images[57].spec.centre_lat == pytest.approx(lay.lat[57], abs=1e-6)
+
+
+def test_cli_writes_a_large_preset(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from geoblock.cli.main import cli
+    from geoblock.io import read_block, read_points
+
+    out = tmp_path / "big"
+    res = CliRunner().invoke(cli, ["simulate", "continental-spot-1000", str(out), "--images",
+                                   "4", "--tps", "300", "--seed", "3"])
+    assert res.exit_code == 0, res.output
+    block = read_block(out / "block.toml")
+    assert [im.id for im in block.images] == ["s000k000", "s000k001", "s001k000", "s001k001"]
+    assert block.method == "dg" and block.dem is not None and block.dem.sigma == 10.0
+    image = read_points(out / "points" / "image.csv")
+    tp = np.asarray(image["kind"]) == "tp"
+    assert np.unique(np.asarray(image["id"])[tp]).size == 300
+    # the same block in memory
+    lb = large_block(large_preset("continental-spot-1000", images=4, tps=300, seed=3))
+    assert np.allclose(np.asarray(image["row"], float), lb.points.image.row)
+    for args, word in ((["--variant", "full"], "--variant"), ([], None)):
+        if word is None:
+            continue
+        res = CliRunner().invoke(cli, ["simulate", "continental-spot-1000",
+                                       str(tmp_path / "x"), *args])
+        assert res.exit_code != 0 and word in res.output
+    res = CliRunner().invoke(cli, ["simulate", "teo2010-spot5", str(tmp_path / "y"), "--tps",
+                                   "10"])
+    assert res.exit_code != 0 and "large presets" in res.output

@@ -37,9 +37,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -211,7 +213,9 @@ def large_preset(name: str, *, tps: int | None = None, images: int | None = None
         Tie points in the whole block (default the preset's).
     images : int, optional
         About this many images instead (strips and scenes scaled by the same factor, at least
-        2 x 2), e.g. 100, 300, 3000 for a scaling study.
+        2 x 2), e.g. 100, 300, 3000 for a scaling study; the relief is scaled by the block's
+        side to the power 0.8 (the terrain's Hurst exponent), so that the terrain is as rough
+        per kilometre and the DEM's RMSEz holds.
     seed : int, optional
 
     Raises
@@ -229,10 +233,20 @@ def large_preset(name: str, *, tps: int | None = None, images: int | None = None
             raise GeoblockError(f"large_preset: images must be >= 4, got {images}")
         f = math.sqrt(images / spec.images)
         strips = max(2, round(spec.strips * f))
-        changes.update(strips=strips, scenes=max(2, round(images / strips)),
-                       name=f"{spec.name}-{images}")
+        scenes = max(2, round(images / strips))
+        # the fractal terrain spans its relief over the whole block: scaled with the block's
+        # side to the power of its Hurst exponent (0.8), it keeps the same roughness per
+        # kilometre whatever the block's size
+        k = math.sqrt(strips * scenes / spec.images) ** 0.8
+        lo, hi = spec.relief
+        changes.update(strips=strips, scenes=scenes, name=f"{spec.name}-{images}",
+                       relief=(lo * k, hi * k))
     if tps is not None:
         changes["tps"] = int(tps)
+    if images is not None or tps is not None:
+        changes["description"] = (
+            f"{spec.description}; scaled to {changes.get('strips', spec.strips)} strips x "
+            f"{changes.get('scenes', spec.scenes)} scenes, {changes.get('tps', spec.tps)} TPs")
     if seed is not None:
         changes["seed"] = int(seed)
     return spec.replace(**changes) if changes else spec
@@ -389,6 +403,58 @@ class LargeBlock:
         ground, image = self.points.observations()
         return Block(self.onboard_models(method), image, ground, self.dem.to_dem(),
                      max(self.spec.dem_rmse_z, 0.1))
+
+    def write(self, directory: str | os.PathLike[str], *, true_models: bool = False,
+              progress: Any = None) -> dict[str, Path]:
+        """Write the block as ``geoblock simulate`` writes a scenario, without images or
+        report: ``block.toml`` (on-board models, the spec's method, the DEM with its RMSEz
+        as sigma), ``images/<id>_onboard.json`` (and ``<id>_true.json`` with
+        ``true_models``: ~0.45 MB each for 3000 columns), ``terrain/truth.tif``,
+        ``terrain/dem.tif``, ``points/ground.csv``, ``points/image.csv``,
+        ``points/truth.csv``.
+
+        Returns
+        -------
+        dict of str to pathlib.Path
+            ``block``, ``truth``, ``dem``, ``points:ground``... and
+            ``onboard_model:<id>`` per image.
+
+        Raises
+        ------
+        GeoblockIOError
+            A file cannot be written (names it).
+        """
+        from geoblock.io import BlockDem, BlockImage, write_block, write_model
+        from geoblock.io.blocks import Block as BlockFile
+        from geoblock.io.files import make_directory
+
+        say = progress or (lambda message: None)
+        out = Path(directory)
+        for sub in ("terrain", "images", "points"):
+            make_directory(out / sub)
+        files: dict[str, Path] = {
+            "truth": self.truth.write(out / "terrain" / "truth.tif"),
+            "dem": self.dem.write(out / "terrain" / "dem.tif")}
+        say(f"writing {len(self.sensors)} on-board models")
+        for image_id, sim in self.sensors.items():
+            files[f"onboard_model:{image_id}"] = write_model(
+                sim.onboard_model, out / "images" / f"{image_id}_onboard.json")
+            if true_models:
+                files[f"true_model:{image_id}"] = write_model(
+                    sim.true_model, out / "images" / f"{image_id}_true.json")
+        say(f"writing {len(self.points.image)} measurements")
+        for key, path in self.points.write(out / "points").items():
+            files[f"points:{key}"] = path
+        block = BlockFile(
+            images=tuple(BlockImage(i, files[f"onboard_model:{i}"], None)
+                         for i in self.sensors),
+            method=self.spec.method, ground_points=files["points:ground"],
+            image_points=files["points:image"], truth=files["points:truth"],
+            dem=BlockDem(str(files["dem"]), sigma=self.spec.dem_rmse_z or None),
+            name=self.spec.name,
+            outputs={"directory": out / "adjusted", "report": out / "adjusted" / "report.md"})
+        files["block"] = write_block(out / "block.toml", block)
+        return files
 
 
 def _footprints(models: list[Any], proj: pyproj.Proj, h: float) -> np.ndarray:
