@@ -17,6 +17,8 @@ from geoblock.cli.options import (
     output_opt,
     overwrite_opt,
     positive_float,
+    scheduler_opt,
+    using_scheduler,
 )
 
 if TYPE_CHECKING:
@@ -128,6 +130,7 @@ def _unit_interval(ctx: click.Context, param: click.Parameter, value: float | No
               help="Print the pair graph (images, candidate and selected pairs with their "
               "overlap and convergence, connected components, images with no pair) and stop "
               "before matching.")
+@scheduler_opt
 @click.option("--diagnostics", metavar="CSV", default=None,
               help="Also write every candidate match: positions, the models' prediction, "
               "offset, ratio, correlation, residuals across/along the epipolar direction and "
@@ -144,14 +147,16 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
           ground_output: str | None, reference_diagnostics: str | None,
           min_overlap: float | None, max_pairs_per_image: int | None,
           min_convergence: float | None, max_convergence: float | None, pairs_only: bool,
-          diagnostics: str | None, overwrite: bool) -> None:
+          scheduler: str, diagnostics: str | None, overwrite: bool) -> None:
     """Measure tie points between IMAGEs (or the images of BLOCK.toml) and write them as the
     image-measurement CSV 'geoblock adjust' reads: id, image, row, col, sigma, kind (tp).
 
     The pairs are chosen from the images' footprints on the DEM (their overlap, the
     convergence of their lines of sight, at most --max-pairs-per-image per image without
     splitting the block) and the pair graph is reported before any matching (--pairs-only
-    stops there). Each selected pair is matched: SIFT keypoints
+    stops there). The matching runs as tasks (one per image's keypoints, one per pair) on
+    --scheduler: local threads, processes, or a dask.distributed cluster, with the same CSV,
+    byte for byte, on every one. Each selected pair is matched: SIFT keypoints
     (OpenCV) spread over the overlap; each keypoint of the first image goes to the DEM
     through its model and into the second image through the other's (the prediction);
     descriptors are compared only with keypoints inside a window around the prediction
@@ -250,8 +255,9 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         images = _block_images(spec, inputs[0])
         dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else \
             _block_dem(spec, inputs[0])
-        result = match_images(images, dem, options=opts, progress=say) \
-            if len(spec.images) >= 2 or ref is None else None
+        with using_scheduler(scheduler) as where:
+            result = match_images(images, dem, options=opts, progress=say, scheduler=where) \
+                if len(spec.images) >= 2 or ref is None else None
     else:
         if len(inputs) < 2 and ref is None:
             raise click.UsageError("give two or more IMAGEs, or one BLOCK.toml (or one IMAGE "
@@ -261,8 +267,9 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
                                    "predict the matches through)")
         images = _images(inputs, models, ids, no_crop, force)
         dem = open_dem_arg(dem_source, dem_vertical, geoid)
-        result = match_images(images, dem, options=opts, progress=say) \
-            if len(images) >= 2 else None
+        with using_scheduler(scheduler) as where:
+            result = match_images(images, dem, options=opts, progress=say, scheduler=where) \
+                if len(images) >= 2 else None
     control = None
     if ref is not None:
         from geoblock.match.reference import ReferenceOptions, match_reference

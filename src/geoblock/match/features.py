@@ -225,7 +225,9 @@ def detect_keypoints(
     cell_r = np.clip(((g[:, 0] - r0 + 0.5) // cell_px).astype(np.intp), 0, n_cr - 1)
     cell_c = np.clip(((g[:, 1] - c0 + 0.5) // cell_px).astype(np.intp), 0, n_cc - 1)
     cell = cell_r * n_cc + cell_c
-    order = np.lexsort((-resp, cell))
+    # ties of response broken by position, not by the order OpenCV's threads found them in
+    # (the keypoints' indices number the tie points: they must not depend on the schedule)
+    order = np.lexsort((g[:, 1], g[:, 0], -resp, cell))
     cell = cell[order]
     first = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
     starts = np.repeat(first, np.diff(np.r_[first, cell.size]))

@@ -1,6 +1,8 @@
 """Tie points from images guided by their sensor models: :func:`match_images`, :func:`match_block`.
 
-For every pair of images whose ground overlaps on the DEM (:func:`geoblock.match.geometry.overlap`):
+For every pair of images selected from their footprints on the DEM
+(:func:`geoblock.match.select_pairs`; :func:`geoblock.match.geometry.overlap` gives the windows
+each image is read in), as tasks on any dask scheduler (:mod:`geoblock.match.tasks`):
 
 1. **keypoints** - SIFT, spread over each image's part of the overlaps
    (:func:`~geoblock.match.features.detect_keypoints`);
@@ -44,7 +46,7 @@ import numpy as np
 
 from geoblock.errors import MatchError
 from geoblock.match.consistency import consensus, consistent, scale_of, split_residuals
-from geoblock.match.features import Keypoints, detect_keypoints
+from geoblock.match.features import Keypoints
 from geoblock.match.geometry import (
     Overlap,
     Prediction,
@@ -54,7 +56,7 @@ from geoblock.match.geometry import (
     predict,
 )
 from geoblock.match.pairs import PairGraph, select_pairs
-from geoblock.match.refine import RefineStatus, refine_matches
+from geoblock.match.refine import RefineStatus
 from geoblock.match.results import REJECTIONS, PairMatches, TiePoints
 
 if TYPE_CHECKING:
@@ -283,16 +285,6 @@ class MatchImage:
 
 
 # ============================================================================== one pair
-@dataclass(frozen=True, eq=False)
-class _Prepared:
-    """An image ready for matching: keypoints and pixels of the part that overlaps others."""
-
-    im: MatchImage
-    keypoints: Keypoints
-    pixels: np.ndarray  # float64, NaN = nodata
-    origin: tuple[int, int]  # image pixel of pixels[0, 0]
-
-
 def _union(windows: Sequence[tuple[int, int, int, int]]) -> tuple[int, int, int, int]:
     return (min(w[0] for w in windows), max(w[1] for w in windows),
             min(w[2] for w in windows), max(w[3] for w in windows))
@@ -390,11 +382,13 @@ def _first_of_groups(key: np.ndarray, score: np.ndarray) -> np.ndarray:
     return keep
 
 
-def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search: float,
-                options: MatchOptions, progress: Progress) -> PairMatches:
-    """Match one pair of prepared images (steps 2-6 of the module docstring), with the first
-    pass' window radius ``search`` (pixels of B); the result's arrays are in each image's own
-    pixels.
+def _match_pair(a: MatchImage, keypoints_a: Keypoints, b: MatchImage, kp_b: Keypoints,
+                dem: DemSource, lap: Overlap, search: float, options: MatchOptions,
+                progress: Progress) -> PairMatches:
+    """Match one pair of images (steps 2-6 of the module docstring) given their keypoints,
+    with the first pass' window radius ``search`` (pixels of B); the result's arrays are in
+    each image's own pixels, its indices into ``keypoints_a`` and ``kp_b``. The pixels are
+    read a tile at a time (:func:`geoblock.match.tasks.refine_in_tiles`).
 
     Raises
     ------
@@ -406,17 +400,16 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
 
     say = progress
     start_time = time.perf_counter()
-    names = f"{a.im.name} and {b.im.name}"
+    names = f"{a.name} and {b.name}"
     if lap.window_a is None:
         raise MatchError(f"{names}: the images do not overlap on the DEM")
-    in_a = np.flatnonzero(_inside_window(a.keypoints, lap.window_a))
-    kp_a = a.keypoints.subset(in_a)
-    kp_b = b.keypoints
+    in_a = np.flatnonzero(_inside_window(keypoints_a, lap.window_a))
+    kp_a = keypoints_a.subset(in_a)
     if not len(kp_a) or not len(kp_b):
-        empty = a.im.name if not len(kp_a) else b.im.name
+        empty = a.name if not len(kp_a) else b.name
         raise MatchError(f"{empty}: no SIFT keypoint where {names} overlap (a flat, "
                          "saturated or nodata area?); try a lower contrast threshold")
-    pred = predict(a.im.model, b.im.model, dem, kp_a.row, kp_a.col)
+    pred = predict(a.model, b.model, dem, kp_a.row, kp_a.col)
     ok = np.flatnonzero(pred.ok)
     if not ok.size:
         raise MatchError(f"{names}: no keypoint of the first is predicted inside the second "
@@ -425,7 +418,7 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
     in_a = in_a[ok]
     pred = Prediction(pred.row[ok], pred.col[ok], pred.h[ok], pred.epi_row[ok],
                       pred.epi_col[ok], pred.ok[ok])
-    centre, scale = scale_of(a.im.model.shape)
+    centre, scale = scale_of(a.model.shape)
     norm = pred.epipolar_norm
     tree = cKDTree(np.column_stack([kp_b.row, kp_b.col]))
 
@@ -458,7 +451,7 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
                        sigma_h_m=options.dem_sigma_m, max_sigma_h_m=2 * options.dem_sigma_m,
                        centre=centre, scale=scale)
     off = first.bias.mean(kp_a.row[sel][first.inlier], kp_a.col[sel][first.inlier])
-    say(f"  {a.im.id} & {b.im.id}: models' offset {off[0]:+.1f}, "
+    say(f"  {a.id} & {b.id}: models' offset {off[0]:+.1f}, "
         f"{off[1]:+.1f} px from {int(first.inlier.sum())} of "
         f"{sel.size} first-pass matches (window {search:.0f} px)")
 
@@ -497,15 +490,12 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
     score = np.full(n, np.nan)
     live_i = np.flatnonzero(live)
     if live_i.size:
-        jac = local_affine(a.im.model, b.im.model, dem, ra[live_i], ca[live_i])
-        ref = refine_matches(a.pixels, b.pixels, ra[live_i] - a.origin[0],
-                             ca[live_i] - a.origin[1], rb[live_i] - b.origin[0],
-                             cb[live_i] - b.origin[1], jac, half_px=options.half_px,
-                             search_px=options.refine_search_px, min_score=options.min_score)
-        row_b[live_i] = ref.row + b.origin[0]
-        col_b[live_i] = ref.col + b.origin[1]
-        score[live_i] = ref.score
-        status[live_i[ref.status != RefineStatus.CONVERGED]] = "correlation"
+        from geoblock.match.tasks import refine_in_tiles
+
+        jac = local_affine(a.model, b.model, dem, ra[live_i], ca[live_i])
+        row_b[live_i], col_b[live_i], score[live_i], refined = refine_in_tiles(
+            a, b, ra[live_i], ca[live_i], rb[live_i], cb[live_i], jac, options)
+        status[live_i[refined != RefineStatus.CONVERGED]] = "correlation"
 
     # --- outlier test on the refined matches
     live = status == "kept"
@@ -534,7 +524,7 @@ def _match_pair(a: _Prepared, b: _Prepared, dem: DemSource, lap: Overlap, search
     else:
         status[live] = "epipolar"  # too few to test: none is trusted
     return PairMatches(
-        a.im.id, b.im.id, len(kp_a), len(kp_b), int(pred.ok.sum()), in_a[idx],
+        a.id, b.id, len(kp_a), len(kp_b), int(pred.ok.sum()), in_a[idx],
         np.where(best >= 0, best, -1), ra, ca, row_b, col_b, pred.row[idx], pred.col[idx],
         ratio, score, perp, height, status, bias, s_p, s_h, search,
         time.perf_counter() - start_time)
@@ -565,108 +555,10 @@ def _pairs(images: Sequence[MatchImage], dem: DemSource, options: MatchOptions,
     return pairs
 
 
-def _tracks(images: Sequence[MatchImage], prepared: Sequence[_Prepared],
-            results: Sequence[PairMatches], pair_index: Sequence[tuple[int, int]],
-            dem: DemSource, options: MatchOptions, sigmas: Sequence[float]
-            ) -> tuple[dict[str, np.ndarray], int]:
-    """Join the kept matches of every pair into tracks (module docstring, step 7)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    sizes = [len(p.keypoints) for p in prepared]
-    base = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
-    total = int(base[-1])
-    link_a, link_b, link_rb, link_cb, link_sigma = [], [], [], [], []
-    for (i, j), res, s in zip(pair_index, results, sigmas, strict=True):
-        kept = res.kept
-        link_a.append(base[i] + res.index_a[kept])
-        link_b.append(base[j] + res.index_b[kept])
-        link_rb.append(res.row_b[kept])
-        link_cb.append(res.col_b[kept])
-        link_sigma.append(np.full(int(kept.sum()), s))
-    la, lb = np.concatenate(link_a), np.concatenate(link_b)
-    lrb, lcb, lsig = (np.concatenate(v) for v in (link_rb, link_cb, link_sigma))
-    graph = coo_matrix((np.ones(la.size), (la, lb)), shape=(total, total))
-    _, label = connected_components(graph, directed=False)
-    image_of = np.repeat(np.arange(len(sizes)), sizes)
-    in_track = np.zeros(total, bool)
-    in_track[la] = in_track[lb] = True
-    nodes = np.flatnonzero(in_track)
-    comp = label[nodes]
-    # a track with two keypoints of one image is inconsistent: dropped
-    pair_key = comp.astype(np.int64) * len(sizes) + image_of[nodes]
-    uniq, counts = np.unique(pair_key, return_counts=True)
-    bad_comp = np.unique(uniq[counts > 1] // len(sizes))
-    good = ~np.isin(comp, bad_comp)
-    nodes, comp = nodes[good], comp[good]
-    # the reference of a track: its node in the first image (nodes are sorted by image)
-    order = np.lexsort((image_of[nodes], comp))
-    nodes, comp = nodes[order], comp[order]
-    is_ref = np.r_[True, comp[1:] != comp[:-1]]
-    ref_node = nodes[is_ref][np.cumsum(is_ref) - 1]
-    # positions: the reference's keypoint; others from the link with the reference, if any
-    kp_row = np.concatenate([p.keypoints.row for p in prepared])
-    kp_col = np.concatenate([p.keypoints.col for p in prepared])
-    row = kp_row[nodes].copy()
-    col = kp_col[nodes].copy()
-    sigma = np.zeros(nodes.size)
-    link_key = la.astype(np.int64) * total + lb
-    node_key = ref_node.astype(np.int64) * total + nodes
-    sort = np.argsort(link_key)
-    pos = np.searchsorted(link_key[sort], node_key)
-    pos = np.minimum(pos, link_key.size - 1)
-    direct = link_key[sort][pos] == node_key
-    row[direct] = lrb[sort][pos[direct]]
-    col[direct] = lcb[sort][pos[direct]]
-    sigma[direct] = lsig[sort][pos[direct]]
-    # nodes linked to the reference only through others: refined against it now
-    keep = np.ones(nodes.size, bool)
-    indirect = ~direct & ~is_ref
-    if indirect.any():
-        ref_img, node_img = image_of[ref_node], image_of[nodes]
-        for i, j in sorted(set(zip(ref_img[indirect].tolist(), node_img[indirect].tolist(),
-                                   strict=True))):  # per pair of images
-            sel = np.flatnonzero(indirect & (ref_img == i) & (node_img == j))
-            pa, pb = prepared[i], prepared[j]
-            ra, ca = kp_row[ref_node[sel]], kp_col[ref_node[sel]]
-            jac = local_affine(pa.im.model, pb.im.model, dem, ra, ca)
-            ref = refine_matches(pa.pixels, pb.pixels, ra - pa.origin[0], ca - pa.origin[1],
-                                 row[sel] - pb.origin[0], col[sel] - pb.origin[1], jac,
-                                 half_px=options.half_px, search_px=options.refine_search_px,
-                                 min_score=options.min_score)
-            good_ref = ref.status == RefineStatus.CONVERGED
-            row[sel] = ref.row + pb.origin[0]
-            col[sel] = ref.col + pb.origin[1]
-            keep[sel[~good_ref]] = False
-            sigma[sel] = float(np.max(sigmas))
-    # tracks left with fewer than two measurements are dropped
-    kept_comp = comp[keep]
-    uniq, counts = np.unique(kept_comp, return_counts=True)
-    keep &= np.isin(comp, uniq[counts >= 2])
-    nodes, comp, is_ref = nodes[keep], comp[keep], is_ref[keep]
-    row, col, sigma = row[keep], col[keep], sigma[keep]
-    # the track's sigma: the largest of its measurements'; ids in the order of the
-    # reference image and position
-    track_sigma = np.zeros(int(label.max()) + 1 if label.size else 0)
-    np.maximum.at(track_sigma, comp, sigma)
-    ref_rank = np.lexsort((kp_col[nodes][is_ref], kp_row[nodes][is_ref],
-                           image_of[nodes][is_ref]))
-    number = np.empty(int(label.max()) + 1 if label.size else 0, np.intp)
-    number[comp[is_ref][ref_rank]] = np.arange(ref_rank.size)
-    width = max(5, len(str(max(ref_rank.size, 1))))
-    ids = np.char.add(options.id_prefix, np.char.zfill(number[comp].astype(str), width))
-    img = image_of[nodes]
-    offset = np.array([im.offset for im in images], dtype=float).reshape(-1, 2)
-    out = {"id": ids, "image": np.array([im.id for im in images], dtype=str)[img],
-           "row": row + offset[img, 0], "col": col + offset[img, 1],
-           "sigma": track_sigma[comp], "_order": np.lexsort((img, number[comp]))}
-    return out, int(bad_comp.size)
-
-
 def match_images(images: Sequence[MatchImage], dem: DemSource, *,
                  options: MatchOptions | None = None,
                  progress: Progress | None = None,
-                 pairs: PairGraph | None = None) -> TiePoints:
+                 pairs: PairGraph | None = None, scheduler: Any = "threads") -> TiePoints:
     """Tie points between images, guided by their sensor models and a DEM.
 
     Parameters
@@ -682,6 +574,9 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     pairs : PairGraph, optional
         The pairs to match (:func:`geoblock.match.select_pairs` of these images); default
         selected with the options' thresholds.
+    scheduler : {"threads", "processes", "synchronous"} or distributed.Client
+        Where the tasks run (:mod:`geoblock.match.tasks`: one per image's keypoints, one per
+        pair): the result is the same, byte for byte, on every one.
 
     Returns
     -------
@@ -726,10 +621,11 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         names = ", ".join(im.name for im in images)
         raise MatchError(f"no two of the images overlap on the DEM ({names}): check the "
                          "models, the DEM and that the images show the same area")
-    from geoblock.io.images import read_band
+    from geoblock.match.tasks import match_pairs, refine_links
+    from geoblock.match.tracks import join_tracks
 
     searches = [_search_px(images[i], images[j], lap, options) for i, j, lap in pairs_]
-    prepared = []
+    windows: list[tuple[int, int, int, int] | None] = []
     pad = 2 * (options.half_px + options.refine_search_px + 4)  # the correlation's patches
     for k, im in enumerate(images):
         shape = (int(im.image.shape[0]), int(im.image.shape[1]))
@@ -739,41 +635,29 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         boxes += [_pad(lap.window_b, pad + r, shape) for (_, j, lap), r in zip(pairs_, searches,
                                                                             strict=True)
                   if j == k and lap.window_b is not None]
-        if not boxes:
-            prepared.append(_Prepared(im, Keypoints.empty(), np.zeros((0, 0)), (0, 0)))
-            continue
-        window = _union(boxes)
-        kp = detect_keypoints(im.image, window, max_keypoints=options.max_keypoints,
-                              cell_px=options.cell_px,
-                              contrast_threshold=options.contrast_threshold)
-        if not len(kp):
-            raise MatchError(f"{im.name}: no SIFT keypoint found in its overlap with the "
-                             "other images (a flat, saturated or nodata area?)")
-        say(f"  {im.id}: {len(kp)} keypoints in rows {window[0]}-{window[1]}, cols "
-            f"{window[2]}-{window[3]}")
-        prepared.append(_Prepared(im, kp, read_band(im.image, window),
-                                  (window[0], window[2])))
-    results, sigmas = [], []
-    for (i, j, lap), search in zip(pairs_, searches, strict=True):
-        res = _match_pair(prepared[i], prepared[j], dem, lap, search, options, say)
-        say("  " + res.summary())
-        results.append(res)
-        sigmas.append(options.sigma_px if options.sigma_px is not None
-                      else max(res.sigma_px / math.sqrt(2.0), 0.05))
-    columns, dropped = _tracks(images, prepared, results, [(i, j) for i, j, _ in pairs_], dem,
-                               options, sigmas)
+        windows.append(_union(boxes) if boxes else None)
+    say(f"matching {len(pairs_)} pairs of {sum(w is not None for w in windows)} images "
+        f"({scheduler if isinstance(scheduler, str) else 'distributed'} scheduler)")
+    positions, results = match_pairs(images, dem, pairs_, searches, windows, options,
+                                     scheduler, say)
+    sigmas = [options.sigma_px if options.sigma_px is not None
+              else max(res.sigma_px / math.sqrt(2.0), 0.05) for res in results]
+    columns, dropped = join_tracks(
+        images, positions, results, [(i, j) for i, j, _ in pairs_], options, sigmas,
+        lambda jobs: refine_links(images, dem, jobs, options, scheduler))
     order = columns.pop("_order")
     columns = {k: v[order] for k, v in columns.items()}
     return TiePoints(columns["id"], columns["image"], columns["row"], columns["col"],
                      columns["sigma"], tuple(results), tuple(ids),
-                     {p.im.id: len(p.keypoints) for p in prepared}, dropped,
+                     {im.id: int(p[0].size) for im, p in zip(images, positions, strict=True)},
+                     dropped,
                      time.perf_counter() - start,
                      {im.id: im.offset for im in images})
 
 
 def match_block(block: Any, *, dem: DemSource | None = None,
                 options: MatchOptions | None = None,
-                progress: Progress | None = None) -> TiePoints:
+                progress: Progress | None = None, scheduler: Any = "threads") -> TiePoints:
     """Tie points between all overlapping images of a block file.
 
     Parameters
@@ -788,6 +672,8 @@ def match_block(block: Any, *, dem: DemSource | None = None,
         (``min_overlap``, ``max_pairs_per_image``, ``min_convergence_deg``,
         ``max_convergence_deg``) the block's ``[match]`` table's, where left at their defaults.
     progress : callable, optional
+    scheduler : {"threads", "processes", "synchronous"} or distributed.Client
+        Where the tasks run (:func:`match_images`).
 
     Returns
     -------
@@ -828,7 +714,7 @@ def match_block(block: Any, *, dem: DemSource | None = None,
                                  "needs the terrain to predict where the images meet")
         dem = spec.dem.to_source(name)
     images = [MatchImage.from_files(im.id, im.raster, im.model) for im in spec.images]
-    return match_images(images, dem, options=options, progress=progress)
+    return match_images(images, dem, options=options, progress=progress, scheduler=scheduler)
 
 
 def write_tie_points(path: str | os.PathLike[str], tie_points: TiePoints,
