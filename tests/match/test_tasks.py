@@ -115,3 +115,22 @@ def test_cli_scheduler_option(triplet, reference, tmp_path):
     result = CliRunner().invoke(build_cli(), ["match", str(outdir / "block.toml"), "-o",
                                               str(tmp_path / "x.csv"), "--scheduler", "thread"])
     assert result.exit_code == 2 and "'thread' is none of threads" in result.output
+
+
+def test_a_pair_that_fails_does_not_stop_the_others(triplet, tmp_path):
+    import geoblock
+
+    outdir, _ = triplet
+    flat = tmp_path / "c_flat.tif"
+    geoblock.io.write_image(flat, np.full((300, 300), 100, np.uint8))
+    block = tmp_path / "block.toml"
+    text = (outdir / "block.toml").read_text().replace('"images/c.tif"', f'"{flat}"')
+    block.write_text(text.replace('"images/', f'"{outdir}/images/').replace(
+        '"terrain/', f'"{outdir}/terrain/'))
+    messages = []
+    tps = match_block(block, scheduler="threads", progress=messages.append)
+    assert [(a, b) for a, b, _ in tps.failed] == [("a", "c"), ("b", "c")]
+    assert all(f"{flat}: no SIFT keypoint" in why for _, _, why in tps.failed)
+    assert set(tps.image.tolist()) == {"a", "b"} and len(tps.pairs) == 1
+    assert "2 of 3 pairs failed" in "\n".join(messages)
+    assert "from 1 pair(s) (2 failed)" in tps.summary()

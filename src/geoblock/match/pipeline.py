@@ -586,9 +586,10 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     Raises
     ------
     MatchError
-        Fewer than two images, duplicate ids, no pair overlaps, an image without keypoints
-        where it overlaps another, or a pair without a consistent bias (the message names the
-        files).
+        Fewer than two images, duplicate ids, no pair overlaps, or no pair could be matched
+        (an image without keypoints where it overlaps another, a pair without a consistent
+        bias: the message names the files). A pair that fails while others succeed is
+        reported (``progress``, :attr:`TiePoints.failed`) and left out.
 
     Examples
     --------
@@ -638,12 +639,23 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         windows.append(_union(boxes) if boxes else None)
     say(f"matching {len(pairs_)} pairs of {sum(w is not None for w in windows)} images "
         f"({scheduler if isinstance(scheduler, str) else 'distributed'} scheduler)")
-    positions, results = match_pairs(images, dem, pairs_, searches, windows, options,
-                                     scheduler, say)
+    positions, outcome, failures = match_pairs(images, dem, pairs_, searches, windows, options,
+                                               scheduler, say)
+    done = [p for p, res in enumerate(outcome) if res is not None]
+    failed = tuple((images[i].id, images[j].id, str(failures[p]))
+                   for p, (i, j, _) in enumerate(pairs_) if outcome[p] is None)
+    if not done:  # nothing to join: the first failure says why
+        more = f" (and {len(failed) - 1} more pair(s) failed)" if len(failed) > 1 else ""
+        raise MatchError(f"{failed[0][2]}{more}")
+    if failed:
+        say(f"{len(failed)} of {len(pairs_)} pairs failed (their images are tied by the other "
+            "pairs only): " + "; ".join(f"{a} & {b}" for a, b, _ in failed[:10])
+            + (", ..." if len(failed) > 10 else ""))
+    results = [r for r in outcome if r is not None]
     sigmas = [options.sigma_px if options.sigma_px is not None
               else max(res.sigma_px / math.sqrt(2.0), 0.05) for res in results]
     columns, dropped = join_tracks(
-        images, positions, results, [(i, j) for i, j, _ in pairs_], options, sigmas,
+        images, positions, results, [pairs_[p][:2] for p in done], options, sigmas,
         lambda jobs: refine_links(images, dem, jobs, options, scheduler))
     order = columns.pop("_order")
     columns = {k: v[order] for k, v in columns.items()}
@@ -652,7 +664,7 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
                      {im.id: int(p[0].size) for im, p in zip(images, positions, strict=True)},
                      dropped,
                      time.perf_counter() - start,
-                     {im.id: im.offset for im in images})
+                     {im.id: im.offset for im in images}, failed)
 
 
 def match_block(block: Any, *, dem: DemSource | None = None,

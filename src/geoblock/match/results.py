@@ -153,6 +153,9 @@ class TiePoints:
     offsets : mapping of str to (float, float)
         Per image, what was added to the raster's pixels to give the model's
         (:attr:`MatchImage.offset`).
+    failed : tuple of (str, str, str)
+        The selected pairs that could not be matched: ``(image_a, image_b, why)``; their
+        images are tied by the other pairs only.
     """
 
     id: np.ndarray
@@ -166,6 +169,7 @@ class TiePoints:
     dropped_tracks: int
     seconds: float
     offsets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    failed: tuple[tuple[str, str, str], ...] = ()
 
     def __len__(self) -> int:
         return int(self.id.size)
@@ -256,8 +260,9 @@ class TiePoints:
                              if c.get(name, 0))
         kp = sum(self.keypoints.values())
         rate = c.get("kept", 0) / self.seconds if self.seconds > 0 else math.inf
+        failed = f" ({len(self.failed)} failed)" if self.failed else ""
         return (f"{self.n_points} tie points, {len(self)} measurements in {len(self.images)} "
-                f"images from {len(self.pairs)} pair(s): {kp} keypoints, "
+                f"images from {len(self.pairs)} pair(s){failed}: {kp} keypoints, "
                 f"{c.get('candidates', 0)} candidates, {c.get('kept', 0)} matches kept "
                 f"(rejected: {rejected or 'none'}); {rate:.0f} matches/s "
                 f"({self.seconds:.1f} s)")

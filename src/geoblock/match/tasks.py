@@ -213,14 +213,10 @@ def _bbox(row: np.ndarray, col: np.ndarray, pad: float, shape: tuple[int, int]
 # ============================================================================== the tasks
 def _detect(im: MatchImage, window: tuple[int, int, int, int], options: MatchOptions
             ) -> Keypoints:
-    """Keypoints of one image in its part of the overlaps (a task)."""
-    kp = detect_keypoints(im.image, window, max_keypoints=options.max_keypoints,
-                          cell_px=options.cell_px,
-                          contrast_threshold=options.contrast_threshold)
-    if not len(kp):
-        raise MatchError(f"{im.name}: no SIFT keypoint found in its overlap with the "
-                         "other images (a flat, saturated or nodata area?)")
-    return kp
+    """Keypoints of one image in its part of the overlaps (a task; none: its pairs fail)."""
+    return detect_keypoints(im.image, window, max_keypoints=options.max_keypoints,
+                            cell_px=options.cell_px,
+                            contrast_threshold=options.contrast_threshold)
 
 
 def _positions(kp: Keypoints) -> tuple[np.ndarray, np.ndarray]:
@@ -230,13 +226,24 @@ def _positions(kp: Keypoints) -> tuple[np.ndarray, np.ndarray]:
 
 def _pair(a: MatchImage, kp_a: Keypoints, b: MatchImage, kp_b: Keypoints, dem: DemSource,
           lap: Overlap, search: float, options: MatchOptions
-          ) -> tuple[PairMatches, list[str]]:
-    """Match one pair (a task): its result and its messages."""
+          ) -> tuple[PairMatches | None, list[str], str | None]:
+    """Match one pair (a task): its result (None if it failed), its messages and why it
+    failed (a pair that cannot be matched does not stop the block's other pairs)."""
     from geoblock.match.pipeline import _match_pair
 
     messages: list[str] = []
-    res = _match_pair(a, kp_a, b, kp_b, dem, lap, search, options, messages.append)
-    return res, messages
+    if not len(kp_a) or not len(kp_b):
+        empty = a if not len(kp_a) else b
+        return None, messages, (f"{empty.name}: no SIFT keypoint found in its overlap with "
+                                "the other images (a flat, saturated or nodata area?)")
+    try:
+        res = _match_pair(a, kp_a, b, kp_b, dem, lap, search, options, messages.append)
+    except MatchError as exc:
+        text = str(exc)
+        if a.name not in text and b.name not in text:
+            text = f"{a.name} and {b.name}: {text}"
+        return None, messages, text
+    return res, messages, None
 
 
 def _link(a: MatchImage, b: MatchImage, dem: DemSource, row_a: np.ndarray, col_a: np.ndarray,
@@ -254,10 +261,12 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
                 pairs: Sequence[tuple[int, int, Overlap]], searches: Sequence[float],
                 windows: Sequence[tuple[int, int, int, int] | None], options: MatchOptions,
                 scheduler: Any, say: Callable[[str], None]
-                ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[PairMatches]]:
+                ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[PairMatches | None],
+                           list[str | None]]:
     """The keypoint and pair tasks of a block on ``scheduler``: each image's keypoints'
-    positions (none where ``windows`` is None) and the pairs' results, in the order of
-    ``images`` and ``pairs``."""
+    positions (none where ``windows`` is None), the pairs' results (None where a pair
+    failed) and why each failed (None where it did not), in the order of ``images`` and
+    ``pairs``."""
     import uuid
 
     import dask
@@ -284,17 +293,23 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
             k = int(name.split("-")[1])
             say(f"  {images[k].id}: {value[0].size} keypoints")
         else:
-            res, messages = value
+            res, messages, failed = value
             finished[0] += 1
             for m in messages:
                 say(m)
-            say(f"  [{finished[0]}/{len(pairs)}] {res.summary()}")
+            if res is None:
+                i, j, _ = pairs[int(name.split("-")[1])]
+                say(f"  [{finished[0]}/{len(pairs)}] {images[i].id} & {images[j].id}: "
+                    f"failed: {failed}")
+            else:
+                say(f"  [{finished[0]}/{len(pairs)}] {res.summary()}")
 
     out = run_tasks(tasks, scheduler, done)
     positions = [out.get(f"positions-{k}", (np.zeros(0), np.zeros(0)))
                  for k in range(len(images))]
     results = [out[f"pair-{p}"][0] for p in range(len(pairs))]
-    return positions, results
+    failures = [out[f"pair-{p}"][2] for p in range(len(pairs))]
+    return positions, results, failures
 
 
 def refine_links(images: Sequence[MatchImage], dem: DemSource,
