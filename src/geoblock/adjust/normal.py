@@ -40,15 +40,37 @@ import scipy.linalg
 import scipy.linalg.lapack
 import scipy.sparse
 import scipy.sparse.linalg
-from numba import njit
 
-from geoblock.typing import BoolArray, Float64Array, IndexArray
+from geoblock.adjust import _solvers
+from geoblock.adjust._covariance import SelectedCofactor
+from geoblock.adjust._kernels import (
+    _nb_accumulate,
+    _nb_back_substitute,
+    _nb_chunks,
+    _nb_hat_blocks,
+    _nb_inv3,
+    _nb_npp_triplets,
+    _nb_point_cofactors,
+    _nb_reduce,
+)
+from geoblock.adjust._solvers import IterativeSolverError, SolverReport
+from geoblock.typing import Float64Array, IndexArray
 
-__all__ = ["DENSE_LIMIT", "USE_NUMBA", "NormalSystem", "Pairs", "SingularPoints",
-           "compress_columns", "measurement_pairs"]
+__all__ = ["DENSE_COFACTOR_LIMIT", "DENSE_LIMIT", "DIRECT_MEMORY_LIMIT", "SOLVERS", "USE_NUMBA",
+           "IterativeSolverError", "NormalSystem", "Pairs", "SelectedCofactor",
+           "SingularPoints", "SolverReport", "compress_columns", "measurement_pairs"]
 
-#: up to this many parameters the reduced system is solved densely
+#: up to this many parameters the reduced system is dense and solved by Cholesky
+#: (``solver="auto"``); above, no (K, K) dense array is built
 DENSE_LIMIT = 4000
+#: ``solver="auto"`` above DENSE_LIMIT: the sparse direct factorisation while its estimated
+#: size (16 bytes per nonzero of L + U) is at most this many bytes, conjugate gradients beyond
+DIRECT_MEMORY_LIMIT = _solvers.DIRECT_MEMORY_LIMIT
+#: the full (K, K) parameter cofactor (``parameter_cofactor()`` without columns) up to this
+#: many parameters (four (K, K) arrays at the peak: 2 GB at 8000); above, ask for columns
+DENSE_COFACTOR_LIMIT = 8000
+#: the solvers of the reduced system (see :mod:`geoblock.adjust._solvers`)
+SOLVERS = ("auto", "dense", "direct", "iterative")
 #: assemble, reduce and back-substitute with the numba kernels (False: the numpy reference)
 USE_NUMBA = True
 #: with the kernels, dense reduced systems up to this size are factored on the calling
@@ -185,7 +207,8 @@ class NormalSystem:
     n_params : int
         ``K``, the number of parameter unknowns.
     gidx : ndarray of intp, (I, Kmax)
-        Global parameter index of each image's padded columns (-1: padding).
+        Global parameter index of each image's padded columns (-1: padding). Its rows are
+        the blocks of the iterative solver's block-Jacobi preconditioner.
     image_of, point_of : ndarray of intp, (M,)
         The image and point of each measurement.
     a : ndarray, (M, 2, Kc)
@@ -195,8 +218,10 @@ class NormalSystem:
         Whitened point partials ``W^(1/2) B``.
     v : ndarray, (M, 2)
         Whitened residuals, observed minus computed.
-    n_pp_prior : ndarray, (K, K)
-        Prior weight of the parameters (block diagonal), ``b_p_prior`` (K,) its right-hand side.
+    n_pp_prior : ndarray (K, K) or scipy.sparse matrix (K, K)
+        Prior weight of the parameters (block diagonal), ``b_p_prior`` (K,) its right-hand
+        side. Give it sparse above :data:`DENSE_LIMIT` parameters: a dense one is accepted
+        but is itself a (K, K) array.
     n_xx_extra : ndarray, (J, 3, 3)
         Weights on the points other than image measurements (ground pseudo-observations, DEM
         rows), ``b_x_extra`` (J, 3) their right-hand sides.
@@ -206,6 +231,23 @@ class NormalSystem:
         partials zero): the columns a measurement touches (:func:`compress_columns`), so
         that the work per measurement is ``Kc^2``, not ``Kmax^2``. Default
         ``gidx[image_of]``.
+    solver : {"auto", "dense", "direct", "iterative"}
+        How the reduced system is solved (:mod:`geoblock.adjust._solvers`): ``"dense"``
+        Cholesky (only up to :data:`DENSE_LIMIT` parameters: ValueError above),
+        ``"direct"`` sparse factorisation (SuperLU), ``"iterative"`` conjugate gradients
+        preconditioned by the images' parameter blocks. ``"auto"``: dense up to
+        :data:`DENSE_LIMIT`, then direct while the factor's estimated size is at most
+        :data:`DIRECT_MEMORY_LIMIT` bytes, iterative beyond. After :meth:`solve`,
+        :attr:`solver_used` names the method and :attr:`solver_report` (a
+        :class:`SolverReport`) states it (``.statement``) and its outcome.
+
+    Attributes
+    ----------
+    n_pp : ndarray (K, K) or scipy.sparse.csr_matrix
+        The parameter block of the normal matrix: dense with the dense solver, sparse
+        otherwise (``n_pp.diagonal()`` works for both); ``n_pp_diagonal`` (K,) its diagonal.
+    reduced : ndarray or scipy.sparse matrix, (K, K)
+        The reduced system of the last :meth:`solve` (damped as it was).
     """
 
     n_params: int
@@ -215,35 +257,63 @@ class NormalSystem:
     a: np.ndarray
     b: np.ndarray
     v: np.ndarray
-    n_pp_prior: np.ndarray
+    n_pp_prior: Any
     b_p_prior: np.ndarray
     n_xx_extra: np.ndarray
     b_x_extra: np.ndarray
     pairs: Pairs
     cols: np.ndarray | None = None
+    solver: str = "auto"
 
     def __post_init__(self) -> None:
         k = self.n_params
         j = self.n_xx_extra.shape[0]
         self._j = j
         self._numba = USE_NUMBA
+        if self.solver not in SOLVERS:
+            raise ValueError(f"NormalSystem: unknown solver {self.solver!r} "
+                             f"(one of {', '.join(SOLVERS)})")
+        if self.solver == "dense" and k > DENSE_LIMIT:
+            raise ValueError(f"NormalSystem: solver='dense' is limited to DENSE_LIMIT = "
+                             f"{DENSE_LIMIT} parameters ({k} here): use 'auto', 'direct' or "
+                             "'iterative'")
+        self._dense = self.solver == "dense" or (self.solver == "auto" and k <= DENSE_LIMIT)
+        self._method: str | None = None
+        self.factorization: Any = None
+        self.solver_used: str | None = None
+        self.solver_report: SolverReport | None = None
         cols = self.gidx[self.image_of] if self.cols is None else self.cols
         self._cols = np.ascontiguousarray(cols, dtype=np.intp)
         if self._cols.shape != (self.a.shape[0], self.a.shape[2]):
             raise ValueError(f"NormalSystem: cols {self._cols.shape} do not match the partials "
                              f"{self.a.shape}")
+        prior = self.n_pp_prior
+        prior_sparse = scipy.sparse.issparse(prior)
+        if prior_sparse:
+            prior_diag = np.asarray(prior.diagonal(), dtype=np.float64)
+        else:
+            prior = np.asarray(prior, dtype=np.float64)
+            prior_diag = np.diag(prior).copy()
         if self._numba:
             self.a = np.ascontiguousarray(self.a, dtype=np.float64)
             self.b = np.ascontiguousarray(self.b, dtype=np.float64)
             self.v = np.ascontiguousarray(self.v, dtype=np.float64)
-            self.n_pp = np.array(self.n_pp_prior, dtype=np.float64)
+            if self._dense:
+                self.n_pp = prior.toarray() if prior_sparse else np.array(prior)
+            else:
+                self.n_pp = np.empty((0, 0))
             self.b_p = np.array(self.b_p_prior, dtype=np.float64)
             self.n_xx = np.array(self.n_xx_extra, dtype=np.float64)
             self.b_x = np.array(self.b_x_extra, dtype=np.float64)
             self.n_px = np.empty((self.a.shape[0], self.a.shape[2], 3))
             self._order, self._start = _by_point(self.point_of, j, self.pairs)
+            diag = prior_diag.copy()
             _nb_accumulate(self.a, self.b, self.v, self._cols, self.point_of,
-                           self.n_pp, self.b_p, self.n_xx, self.b_x, self.n_px)
+                           self.n_pp, self.b_p, self.n_xx, self.b_x, self.n_px,
+                           self._dense, diag)
+            self.n_pp_diagonal = np.diag(self.n_pp).copy() if self._dense else diag
+            if not self._dense:
+                self.n_pp = self._sparse_npp(prior)
             return
         at = np.swapaxes(self.a, 1, 2)
         self.n_px = at @ self.b  # (M, Kc, 3)
@@ -252,10 +322,18 @@ class NormalSystem:
         g = self._cols  # (M, Kc)
         ok = g >= 0
         # image blocks of N_pp and b_p
-        self.n_pp = self.n_pp_prior.copy()
-        lin = (g[:, :, None] * k + g[:, None, :])[ok[:, :, None] & ok[:, None, :]]
-        self.n_pp += np.bincount(lin, n_pp_m[ok[:, :, None] & ok[:, None, :]],
-                                 minlength=k * k).reshape(k, k)
+        both = ok[:, :, None] & ok[:, None, :]
+        if self._dense:
+            self.n_pp = prior.toarray() if prior_sparse else prior.copy()
+            lin = (g[:, :, None] * k + g[:, None, :])[both]
+            self.n_pp += np.bincount(lin, n_pp_m[both], minlength=k * k).reshape(k, k)
+            self.n_pp_diagonal = np.diag(self.n_pp).copy()
+        else:
+            rows = np.broadcast_to(g[:, :, None], both.shape)[both]
+            cols_ = np.broadcast_to(g[:, None, :], both.shape)[both]
+            self.n_pp = (scipy.sparse.csr_matrix(prior) + scipy.sparse.coo_matrix(
+                (n_pp_m[both], (rows, cols_)), shape=(k, k)).tocsr()).tocsr()
+            self.n_pp_diagonal = np.asarray(self.n_pp.diagonal(), dtype=np.float64)
         self.b_p = self.b_p_prior + np.bincount(g[ok], b_p_m[ok], minlength=k)
         # point blocks
         n_xx_m = np.swapaxes(self.b, 1, 2) @ self.b  # (M, 3, 3)
@@ -264,23 +342,51 @@ class NormalSystem:
         self.b_x = self.b_x_extra.copy()
         np.add.at(self.b_x, self.point_of, np.einsum("mki,mk->mi", self.b, self.v))
 
+    def _sparse_npp(self, prior: Any) -> Any:
+        """``N_pp`` (CSR): the prior plus each measurement's ``A^T A``, its triplets built
+        for runs of measurements (at most SPARSE_CHUNK_TRIPLETS at a time)."""
+        k = self.n_params
+        kc = self._cols.shape[1]
+        out = scipy.sparse.csr_matrix(prior, shape=(k, k), dtype=np.float64)
+        m = self.a.shape[0]
+        if m == 0 or kc == 0:
+            return out
+        run = max(1, SPARSE_CHUNK_TRIPLETS // (kc * kc))
+        size = min(m, run) * kc * kc
+        rows = np.empty(size, np.intp)
+        cols = np.empty(size, np.intp)
+        vals = np.empty(size)
+        for m0 in range(0, m, run):  # runs of measurements, not measurements
+            used = _nb_npp_triplets(self.a, self._cols, m0, min(m, m0 + run), rows, cols, vals)
+            out = out + scipy.sparse.coo_matrix(
+                (vals[:used], (rows[:used], cols[:used])), shape=(k, k)).tocsr()
+        return out
+
     # ------------------------------------------------------------------ solution
     def solve(self, damping: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Parameter and point steps ``(dp (K,), dx (J, 3))`` with Levenberg-Marquardt
         damping ``lambda`` (the diagonals multiplied by ``1 + lambda``).
 
+        The reduced system is solved by :attr:`solver` (the method chosen at the first call
+        is kept for the later ones); :attr:`solver_used` and :attr:`solver_report` say how.
+
         Raises
         ------
         numpy.linalg.LinAlgError
-            The point blocks or the reduced system are singular (the caller diagnoses).
+            The point blocks or the reduced system are singular (the caller diagnoses);
+            :class:`IterativeSolverError` (a LinAlgError) when conjugate gradients do not
+            reach their tolerance within their iteration cap.
         """
-        n_xx = self.n_xx
         n_pp = self.n_pp
+        n_xx = self.n_xx
         if damping:
             n_xx = n_xx + damping * np.einsum("jii->ji", n_xx)[:, :, None] * np.eye(3)
-            n_pp = n_pp.copy()
-            diag = np.arange(n_pp.shape[0])
-            n_pp[diag, diag] += damping * n_pp[diag, diag]
+            if self._dense:
+                n_pp = n_pp.copy()
+                diag = np.arange(n_pp.shape[0])
+                n_pp[diag, diag] += damping * n_pp[diag, diag]
+            else:
+                n_pp = (n_pp + scipy.sparse.diags(damping * self.n_pp_diagonal)).tocsr()
         self.c = _inv3(n_xx, numba=self._numba)  # (J, 3, 3)
         reduced, rhs = self._reduce(n_pp)
         del n_pp
@@ -297,6 +403,46 @@ class NormalSystem:
         np.add.at(t, self.point_of, -np.einsum("mki,mk->mi", self.n_px, dp_m))
         dx = np.einsum("jik,jk->ji", self.c, t)
         return dp, dx
+
+    @property
+    def solver_statement(self) -> str:
+        """One line on how the last :meth:`solve` solved the reduced system ("" before)."""
+        return "" if self.solver_report is None else self.solver_report.statement
+
+    def _groups(self) -> IndexArray:
+        return _solvers.block_groups(self.n_params, self.gidx)
+
+    def _solve_reduced(self, reduced: ReducedMatrix, rhs: F64) -> F64:
+        if self._method is None:
+            method, estimate = _solvers.choose_method(
+                self.solver, reduced, self._groups(), DENSE_LIMIT, DIRECT_MEMORY_LIMIT)
+            self._method = method
+            self._factor_estimate = estimate
+        self.solver_used = self._method
+        if reduced.shape[0] == 0:
+            self.factorization = None
+            self.solver_report = SolverReport(self._method, "no parameters")
+            return np.zeros(0)
+        self.factorization = _solvers.factorize(
+            self._method, reduced, groups=self._groups(), use_numba=USE_NUMBA,
+            serial_limit=SERIAL_CHOLESKY_LIMIT, tolerance=_solvers.PCG_TOLERANCE,
+            max_iterations=_solvers.PCG_MAX_ITERATIONS)
+        out = self.factorization.solve(rhs)
+        self.solver_report = self.factorization.report
+        if self._factor_estimate is not None:
+            self.solver_report.statement += (
+                f" (auto: estimated factor {self._factor_estimate / 2**20:.0f} MiB, limit "
+                f"{DIRECT_MEMORY_LIMIT / 2**20:.0f} MiB)")
+            self.solver_report.details["factor_estimate_bytes"] = self._factor_estimate
+        return np.asarray(out)
+
+    def inverse_diagonal(self) -> F64:
+        """(K,) ``1 / diag(S)`` of the last reduced system: a cheap lower bound of the
+        parameters' cofactor variances (no inverse), good enough to scale a convergence
+        test."""
+        reduced = self.reduced
+        diag = reduced.diagonal()
+        return 1.0 / np.maximum(np.asarray(diag, dtype=np.float64), 1e-300)
 
     def _reduce(self, n_pp: F64) -> tuple[ReducedMatrix, F64]:
         if self._numba:
@@ -317,7 +463,7 @@ class NormalSystem:
         t = np.einsum("mki,mi->mk", self.n_px, cbx)  # (M, Kc)
         g = self._cols
         rhs = self.b_p - np.bincount(g[g >= 0], t[g >= 0], minlength=k)
-        if k <= DENSE_LIMIT:
+        if self._dense:
             reduced = n_pp - np.bincount(rows * k + cols, vals, minlength=k * k).reshape(k, k)
             return 0.5 * (reduced + reduced.T), rhs
         sub = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(k, k)).tocsc()
@@ -327,7 +473,7 @@ class NormalSystem:
         k = self.n_params
         rhs = np.array(self.b_p, dtype=np.float64)
         n_points = self._start.size - 1
-        if k <= DENSE_LIMIT:
+        if self._dense:
             reduced = np.array(n_pp, dtype=np.float64)
             none = np.empty(0, np.intp)
             _nb_reduce(self.n_px, self.c, self.b_x, self._cols, self._order, self._start,
@@ -354,47 +500,61 @@ class NormalSystem:
                 (vals[:used], (rows[:used], cols[:used])), shape=(k, k)).tocsc()
         return reduced, rhs
 
-    @staticmethod
-    def _solve_reduced(reduced: ReducedMatrix, rhs: F64) -> F64:
-        if reduced.shape[0] == 0:
-            return np.zeros(0)
-        if scipy.sparse.issparse(reduced):
-            lu = scipy.sparse.linalg.splu(reduced.tocsc())
-            out = lu.solve(rhs)
-            if not np.all(np.isfinite(out)):
-                raise np.linalg.LinAlgError("singular reduced system")
-            return out
-        scale = np.sqrt(np.abs(np.diag(reduced)))
-        if np.any(scale == 0):
-            raise np.linalg.LinAlgError("a parameter has no observation")
-        scaled = reduced / np.outer(scale, scale)
-        if USE_NUMBA and scaled.shape[0] <= SERIAL_CHOLESKY_LIMIT:
-            low = np.zeros(scaled.shape)
-            if not _nb_cholesky(np.ascontiguousarray(scaled), low):
-                raise np.linalg.LinAlgError("reduced system not positive definite")
-            d = np.diag(low)
-            if d.min() < 1e-7 * d.max():
-                raise np.linalg.LinAlgError("ill-conditioned reduced system")
-            out = np.ascontiguousarray(rhs / scale, dtype=np.float64)
-            _nb_cho_solve(low, out)
-            return out / scale
-        try:
-            factor = scipy.linalg.cho_factor(scaled, lower=True, overwrite_a=True,
-                                             check_finite=False)
-        except scipy.linalg.LinAlgError as exc:
-            raise np.linalg.LinAlgError(str(exc)) from None
-        d = np.diag(factor[0])
-        if d.min() < 1e-7 * d.max():
-            raise np.linalg.LinAlgError("ill-conditioned reduced system")
-        return scipy.linalg.cho_solve(factor, rhs / scale, check_finite=False) / scale
-
     # ------------------------------------------------------------------ covariance
-    def parameter_cofactor(self) -> np.ndarray:
-        """(K, K) ``Q_pp``: the inverse of the reduced system (undamped).
+    def cofactor_columns(self, images: Any = None, points: Any = None) -> IndexArray:
+        """The parameter columns whose cofactors the given images and points need.
 
-        Dense whatever the reduced system's storage (the posterior covariance of every
-        parameter); with the kernels, a Cholesky inverse in place: four (K, K) arrays at the
-        peak, the reduced system's included."""
+        Parameters
+        ----------
+        images : array_like of int, optional
+            Image indices (rows of ``gidx``): their parameters, for their covariances and
+            the hat blocks of their measurements.
+        points : array_like of int, optional
+            Point indices: the columns of every measurement of them (all the images that
+            see them), for their ``Q_xx`` and ``Q_px``.
+
+        Returns
+        -------
+        ndarray of intp
+            Sorted unique global parameter indices, for :meth:`parameter_cofactor`.
+        """
+        parts = [np.zeros(0, np.intp)]
+        if images is not None:
+            g = self.gidx[np.asarray(images, dtype=np.intp)]
+            parts.append(g[g >= 0])
+        if points is not None:
+            want = np.zeros(self._j, bool)
+            want[np.asarray(points, dtype=np.intp)] = True
+            c = self._cols[want[self.point_of]]
+            parts.append(c[c >= 0])
+        return np.unique(np.concatenate(parts)).astype(np.intp)
+
+    def parameter_cofactor(self, columns: Any = None) -> Any:
+        """``Q_pp``, the inverse of the reduced system of the last :meth:`solve` (undamped
+        when that was ``solve(0.0)``).
+
+        Parameters
+        ----------
+        columns : array_like of int, optional
+            Global parameter indices (e.g. :meth:`cofactor_columns`). None: every parameter.
+
+        Returns
+        -------
+        ndarray (K, K) or SelectedCofactor
+            Without ``columns``: the dense ``Q_pp`` (at most :data:`DENSE_COFACTOR_LIMIT`
+            parameters, ValueError above); with the kernels, a Cholesky inverse in place:
+            four (K, K) arrays at the peak, the reduced system's included. With
+            ``columns``: a :class:`SelectedCofactor` holding ``Q_pp[columns][:, columns]``,
+            solved column by column (256 at a time) from the factorisation of :meth:`solve`
+            (conjugate gradients: one run per column); never a (K, K) array.
+        """
+        if columns is not None:
+            return self._selected_cofactor(np.asarray(columns, dtype=np.intp))
+        k = self.n_params
+        if k > DENSE_COFACTOR_LIMIT:
+            raise ValueError(f"NormalSystem.parameter_cofactor: the full ({k}, {k}) cofactor "
+                             f"exceeds DENSE_COFACTOR_LIMIT = {DENSE_COFACTOR_LIMIT}; ask for "
+                             "the columns needed (cofactor_columns(images=, points=))")
         reduced = self.reduced
         if scipy.sparse.issparse(reduced):
             reduced = reduced.toarray()
@@ -412,19 +572,49 @@ class NormalSystem:
         inv = np.linalg.inv(reduced / outer) / outer
         return 0.5 * (inv + inv.T)
 
-    def point_cofactors(self, q_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _selected_cofactor(self, columns: IndexArray) -> SelectedCofactor:
+        k = self.n_params
+        cols = np.unique(columns)
+        if cols.size and (cols[0] < 0 or cols[-1] >= k):
+            raise ValueError(f"NormalSystem.parameter_cofactor: columns outside 0..{k - 1}")
+        q = np.empty((cols.size, cols.size))
+        if cols.size:
+            if self.factorization is None:
+                raise ValueError("NormalSystem.parameter_cofactor: solve() first")
+            chunk = _solvers.COLUMN_CHUNK
+            for c0 in range(0, cols.size, chunk):  # chunks of columns, not columns
+                sel = cols[c0: c0 + chunk]
+                unit = np.zeros((k, sel.size))
+                unit[sel, np.arange(sel.size)] = 1.0
+                q[:, c0: c0 + sel.size] = self.factorization.solve(unit)[cols]
+            q = 0.5 * (q + q.T)
+        return SelectedCofactor(n_params=k, columns=cols, q=q)
+
+    @staticmethod
+    def _cofactor_lookup(q_pp: Any, k: int) -> tuple[F64, IndexArray]:
+        """``(q, pos)``: the held cofactor block and the position of each parameter in it."""
+        if isinstance(q_pp, SelectedCofactor):
+            return np.ascontiguousarray(q_pp.q, dtype=np.float64), q_pp.pos
+        return np.ascontiguousarray(q_pp, dtype=np.float64), np.arange(k, dtype=np.intp)
+
+    def point_cofactors(self, q_pp: Any) -> tuple[np.ndarray, np.ndarray]:
         """``Q_xx`` (J, 3, 3) of the points and ``Q_px`` (M, Kc, 3), the cofactor between
-        the parameters of each measurement's columns and its point."""
+        the parameters of each measurement's columns and its point.
+
+        ``q_pp`` is the dense ``Q_pp`` (K, K) or a :class:`SelectedCofactor`: a point one of
+        whose measurements' columns it does not hold gets NaN (``Q_xx`` and the ``Q_px`` of
+        all its measurements)."""
+        q, pos = self._cofactor_lookup(q_pp, self.n_params)
         if self._numba:
             q_xx = np.empty((self._j, 3, 3))
             q_px = np.empty(self.n_px.shape)
-            _nb_point_cofactors(np.ascontiguousarray(q_pp, dtype=np.float64), self.n_px,
-                                self.c, self._cols, self._order, self._start, q_xx, q_px)
+            _nb_point_cofactors(q, pos, self.n_px, self.c, self._cols, self._order,
+                                self._start, q_xx, q_px)
             return q_xx, q_px
         p = self.pairs
         ga = self._cols[p.a]
         gb = self._cols[p.b]
-        q_ab = _gather(q_pp, ga, gb)  # (P, Kc, Kc)
+        q_ab = _gather(q, pos, ga, gb)  # (P, Kc, Kc)
         u = q_ab @ self.n_px[p.b]  # (P, Kc, 3): Q[i_a, i_b] N_pb
         u_m = np.zeros(self.n_px.shape)
         np.add.at(u_m, p.a, u)
@@ -433,35 +623,44 @@ class NormalSystem:
         inner = np.zeros((self._j, 3, 3))
         np.add.at(inner, p.point, np.swapaxes(self.n_px[p.a], 1, 2) @ u)
         q_xx = self.c + self.c @ inner @ self.c
+        missing = np.zeros(self._j, bool)  # as the kernel: the whole point NaN
+        np.logical_or.at(missing, self.point_of, np.isnan(q_px).any(axis=(1, 2)))
+        q_xx[missing] = np.nan
+        q_px[missing[self.point_of]] = np.nan
         return q_xx, q_px
 
-    def hat_blocks(self, q_pp: np.ndarray, q_xx: np.ndarray, q_px: np.ndarray,
+    def hat_blocks(self, q_pp: Any, q_xx: np.ndarray, q_px: np.ndarray,
                    a: np.ndarray | None = None, b: np.ndarray | None = None) -> np.ndarray:
         """(M, 2, 2) ``W^(1/2) J Q J^T W^(1/2)`` of every measurement.
 
-        ``a`` (M, 2, Kc) in the system's columns and ``b`` (M, 2, 3) replace the system's
-        whitened partials (e.g. partials whitened by the a-priori sigmas alone, without
-        robust weights)."""
+        ``q_pp`` is the dense ``Q_pp`` or a :class:`SelectedCofactor` (NaN for the
+        measurements whose columns or point it does not cover). ``a`` (M, 2, Kc) in the
+        system's columns and ``b`` (M, 2, 3) replace the system's whitened partials (e.g.
+        partials whitened by the a-priori sigmas alone, without robust weights)."""
         a = self.a if a is None else np.ascontiguousarray(a, dtype=np.float64)
         b = self.b if b is None else np.ascontiguousarray(b, dtype=np.float64)
+        q, pos = self._cofactor_lookup(q_pp, self.n_params)
         if self._numba:
             out = np.empty((a.shape[0], 2, 2))
-            _nb_hat_blocks(np.ascontiguousarray(q_pp, dtype=np.float64),
-                           np.ascontiguousarray(q_xx, dtype=np.float64),
+            _nb_hat_blocks(q, pos, np.ascontiguousarray(q_xx, dtype=np.float64),
                            np.ascontiguousarray(q_px, dtype=np.float64), a, b,
                            self._cols, self.point_of, out)
             return out
         g = self._cols
-        q_ii = _gather(q_pp, g, g)
+        q_ii = _gather(q, pos, g, g)
         at = np.swapaxes(a, 1, 2)
         bt = np.swapaxes(b, 1, 2)
         cross = a @ q_px @ bt
         return a @ q_ii @ at + cross + np.swapaxes(cross, 1, 2) + b @ q_xx[self.point_of] @ bt
 
 
-def _gather(q: np.ndarray, ga: np.ndarray, gb: np.ndarray) -> np.ndarray:
-    """(N, Kmax, Kmax) blocks ``q[ga[n, :], gb[n, :]]``, zero where an index is -1."""
-    block = q[np.maximum(ga, 0)[:, :, None], np.maximum(gb, 0)[:, None, :]]
+def _gather(q: np.ndarray, pos: np.ndarray, ga: np.ndarray, gb: np.ndarray) -> np.ndarray:
+    """(N, Kc, Kc) blocks ``q[pos[ga[n, :]], pos[gb[n, :]]]``: zero where an index is -1,
+    NaN where ``pos`` is -1 (a column not held)."""
+    ia = pos[np.maximum(ga, 0)]
+    ib = pos[np.maximum(gb, 0)]
+    block = q[np.maximum(ia, 0)[:, :, None], np.maximum(ib, 0)[:, None, :]]
+    block = np.where((ia < 0)[:, :, None] | (ib < 0)[:, None, :], np.nan, block)
     mask = (ga >= 0)[:, :, None] & (gb >= 0)[:, None, :]
     return np.where(mask, block, 0.0)
 
@@ -506,323 +705,3 @@ def _inv3(m: np.ndarray, numba: bool = False) -> np.ndarray:
     if bad.any():
         raise SingularPoints(np.flatnonzero(bad))
     return np.linalg.inv(s) / (scale[:, :, None] * scale[:, None, :])
-
-
-# ================================================================================ kernels
-@njit(cache=True)
-def _nb_accumulate(  # pragma: no cover - numba
-    a: F64, b: F64, v: F64, cols: Idx, point_of: Idx, n_pp: F64, b_p: F64,
-    n_xx: F64, b_x: F64, n_px: F64,
-) -> None:
-    """Per measurement: ``N_px = A^T B`` into ``n_px``; ``A^T A``, ``A^T v`` scattered into
-    ``n_pp``, ``b_p``; ``B^T B``, ``B^T v`` into the point's ``n_xx``, ``b_x``."""
-    kmax = a.shape[2]
-    for m in range(a.shape[0]):
-        g = cols[m]
-        j = point_of[m]
-        for r in range(kmax):
-            for c in range(3):
-                n_px[m, r, c] = a[m, 0, r] * b[m, 0, c] + a[m, 1, r] * b[m, 1, c]
-        for r in range(kmax):
-            gr = g[r]
-            if gr < 0:
-                continue
-            b_p[gr] += a[m, 0, r] * v[m, 0] + a[m, 1, r] * v[m, 1]
-            for c in range(kmax):
-                gc = g[c]
-                if gc < 0:
-                    continue
-                n_pp[gr, gc] += a[m, 0, r] * a[m, 0, c] + a[m, 1, r] * a[m, 1, c]
-        for r in range(3):
-            b_x[j, r] += b[m, 0, r] * v[m, 0] + b[m, 1, r] * v[m, 1]
-            for c in range(3):
-                n_xx[j, r, c] += b[m, 0, r] * b[m, 0, c] + b[m, 1, r] * b[m, 1, c]
-
-
-@njit(cache=True)
-def _nb_reduce(  # pragma: no cover - numba
-    n_px: F64, cinv: F64, b_x: F64, cols: Idx, order: Idx, start: Idx, j0: int, j1: int,
-    dense: bool, reduced: F64, rhs: F64, t_rows: Idx, t_cols: Idx, vals: F64,
-) -> int:
-    """Schur complement over the points ``j0 <= j < j1``, point by point:
-    ``rhs -= N_pj C_j b_j`` and, for each pair ``a <= b`` of the point's measurements,
-    ``-N_pa C_j N_bp`` (and its transpose for ``a < b``) subtracted from ``reduced`` (dense)
-    or written as triplets (negated). Returns the number of triplets written."""
-    kmax = n_px.shape[1]
-    most = 0
-    for j in range(j0, j1):
-        most = max(most, start[j + 1] - start[j])
-    left = np.empty((most, kmax, 3))
-    cbx = np.empty(3)
-    used = 0
-    for j in range(j0, j1):
-        m0 = start[j]
-        n = start[j + 1] - m0
-        cj = cinv[j]
-        for i in range(3):
-            cbx[i] = cj[i, 0] * b_x[j, 0] + cj[i, 1] * b_x[j, 1] + cj[i, 2] * b_x[j, 2]
-        for q in range(n):
-            m = order[m0 + q]
-            g = cols[m]
-            for r in range(kmax):
-                for c in range(3):
-                    left[q, r, c] = (n_px[m, r, 0] * cj[0, c] + n_px[m, r, 1] * cj[1, c]
-                                     + n_px[m, r, 2] * cj[2, c])
-                if g[r] >= 0:
-                    rhs[g[r]] -= (n_px[m, r, 0] * cbx[0] + n_px[m, r, 1] * cbx[1]
-                                  + n_px[m, r, 2] * cbx[2])
-        for qa in range(n):
-            ga = cols[order[m0 + qa]]
-            for qb in range(qa, n):
-                mb = order[m0 + qb]
-                gb = cols[mb]
-                for r in range(kmax):
-                    if ga[r] < 0:
-                        continue
-                    for c in range(kmax):
-                        if gb[c] < 0:
-                            continue
-                        val = (left[qa, r, 0] * n_px[mb, c, 0] + left[qa, r, 1] * n_px[mb, c, 1]
-                               + left[qa, r, 2] * n_px[mb, c, 2])
-                        if dense:
-                            reduced[ga[r], gb[c]] -= val
-                            if qb != qa:
-                                reduced[gb[c], ga[r]] -= val
-                        else:
-                            t_rows[used] = ga[r]
-                            t_cols[used] = gb[c]
-                            vals[used] = -val
-                            used += 1
-                            if qb != qa:
-                                t_rows[used] = gb[c]
-                                t_cols[used] = ga[r]
-                                vals[used] = -val
-                                used += 1
-    return used
-
-
-@njit(cache=True)
-def _nb_chunks(weights: Idx, budget: int, out: Idx) -> int:  # pragma: no cover - numba
-    """:func:`_chunks` into ``out``; returns the number of boundaries."""
-    out[0] = 0
-    used = 1
-    total = 0
-    for i in range(weights.size):
-        if total > 0 and total + weights[i] > budget:
-            out[used] = i
-            used += 1
-            total = 0
-        total += weights[i]
-    if weights.size > 0:
-        out[used] = weights.size
-        used += 1
-    return used
-
-
-@njit(cache=True)
-def _nb_back_substitute(  # pragma: no cover - numba
-    n_px: F64, cinv: F64, b_x: F64, cols: Idx, point_of: Idx, dp: F64, dx: F64,
-) -> None:
-    """``dx_j = C_j (b_j - sum_m N_jp dp)``."""
-    kmax = n_px.shape[1]
-    t = b_x.copy()
-    for m in range(n_px.shape[0]):
-        g = cols[m]
-        j = point_of[m]
-        for r in range(kmax):
-            if g[r] < 0:
-                continue
-            d = dp[g[r]]
-            for c in range(3):
-                t[j, c] -= n_px[m, r, c] * d
-    for j in range(dx.shape[0]):
-        for i in range(3):
-            dx[j, i] = cinv[j, i, 0] * t[j, 0] + cinv[j, i, 1] * t[j, 1] + cinv[j, i, 2] * t[j, 2]
-
-
-@njit(cache=True)
-def _nb_point_cofactors(  # pragma: no cover - numba
-    q_pp: F64, n_px: F64, cinv: F64, cols: Idx, order: Idx, start: Idx,
-    q_xx: F64, q_px: F64,
-) -> None:
-    """:meth:`NormalSystem.point_cofactors`, point by point: ``U_a = sum_b Q[i_a, i_b] N_pb``,
-    ``Q_px[a] = -U_a C_j``, ``Q_xx[j] = C_j + C_j (sum_a N_pa^T U_a) C_j``."""
-    kmax = n_px.shape[1]
-    u = np.empty((kmax, 3))
-    inner = np.empty((3, 3))
-    tmp = np.empty((3, 3))
-    for j in range(start.size - 1):
-        m0 = start[j]
-        n = start[j + 1] - m0
-        cj = cinv[j]
-        inner[:, :] = 0.0
-        for qa in range(n):
-            ma = order[m0 + qa]
-            ga = cols[ma]
-            u[:, :] = 0.0
-            for qb in range(n):
-                mb = order[m0 + qb]
-                gb = cols[mb]
-                for r in range(kmax):
-                    if ga[r] < 0:
-                        continue
-                    for c in range(kmax):
-                        if gb[c] < 0:
-                            continue
-                        q = q_pp[ga[r], gb[c]]
-                        u[r, 0] += q * n_px[mb, c, 0]
-                        u[r, 1] += q * n_px[mb, c, 1]
-                        u[r, 2] += q * n_px[mb, c, 2]
-            for r in range(kmax):
-                for c in range(3):
-                    q_px[ma, r, c] = -(u[r, 0] * cj[0, c] + u[r, 1] * cj[1, c]
-                                       + u[r, 2] * cj[2, c])
-            for i in range(3):
-                for k in range(3):
-                    acc = 0.0
-                    for r in range(kmax):
-                        acc += n_px[ma, r, i] * u[r, k]
-                    inner[i, k] += acc
-        for i in range(3):
-            for k in range(3):
-                tmp[i, k] = cj[i, 0] * inner[0, k] + cj[i, 1] * inner[1, k] + cj[i, 2] * inner[2, k]
-        for i in range(3):
-            for k in range(3):
-                q_xx[j, i, k] = cj[i, k] + (tmp[i, 0] * cj[0, k] + tmp[i, 1] * cj[1, k]
-                                            + tmp[i, 2] * cj[2, k])
-
-
-@njit(cache=True)
-def _nb_hat_blocks(  # pragma: no cover - numba
-    q_pp: F64, q_xx: F64, q_px: F64, a: F64, b: F64, cols: Idx, point_of: Idx, out: F64,
-) -> None:
-    """:meth:`NormalSystem.hat_blocks` per measurement."""
-    kmax = a.shape[2]
-    aq = np.empty(kmax)
-    for m in range(a.shape[0]):
-        g = cols[m]
-        j = point_of[m]
-        for s in range(2):
-            for t in range(2):
-                acc = 0.0
-                # A Q_ii A^T
-                for c in range(kmax):
-                    aq[c] = 0.0
-                for r in range(kmax):
-                    if g[r] < 0:
-                        continue
-                    for c in range(kmax):
-                        if g[c] >= 0:
-                            aq[c] += a[m, s, r] * q_pp[g[r], g[c]]
-                for c in range(kmax):
-                    acc += aq[c] * a[m, t, c]
-                # A Q_px B^T + (B Q_xp A^T)
-                for r in range(kmax):
-                    for c in range(3):
-                        acc += a[m, s, r] * q_px[m, r, c] * b[m, t, c]
-                        acc += a[m, t, r] * q_px[m, r, c] * b[m, s, c]
-                # B Q_xx B^T
-                for r in range(3):
-                    for c in range(3):
-                        acc += b[m, s, r] * q_xx[j, r, c] * b[m, t, c]
-                out[m, s, t] = acc
-
-
-@njit(cache=True)
-def _nb_inv3(m: F64, out: F64, redo: BoolArray, ratio: float) -> None:  # pragma: no cover
-    """Per block: scaled to a unit diagonal, its eigenvalues in closed form (trigonometric
-    solution) and the inverse by the adjugate. Blocks with a zero or non-finite diagonal, or
-    an eigenvalue ratio below ``ratio``, are flagged in ``redo``."""
-    s = np.empty((3, 3))
-    sc = np.empty(3)
-    for j in range(m.shape[0]):
-        ok = True
-        for i in range(3):
-            d = abs(m[j, i, i])
-            if not (d > 0.0 and d < np.inf):
-                ok = False
-            sc[i] = np.sqrt(d)
-        if not ok:
-            redo[j] = True
-            continue
-        for i in range(3):
-            for k in range(3):
-                s[i, k] = m[j, i, k] / (sc[i] * sc[k])
-        # eigenvalues of the symmetric s
-        p1 = s[0, 1] ** 2 + s[0, 2] ** 2 + s[1, 2] ** 2
-        q = (s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
-        p2 = (s[0, 0] - q) ** 2 + (s[1, 1] - q) ** 2 + (s[2, 2] - q) ** 2 + 2.0 * p1
-        p = np.sqrt(p2 / 6.0)
-        if p == 0.0:
-            w_min = q
-            w_max = q
-        else:
-            b00 = (s[0, 0] - q) / p
-            b11 = (s[1, 1] - q) / p
-            b22 = (s[2, 2] - q) / p
-            b01 = s[0, 1] / p
-            b02 = s[0, 2] / p
-            b12 = s[1, 2] / p
-            det_b = (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
-                     + b02 * (b01 * b12 - b11 * b02))
-            r = min(1.0, max(-1.0, det_b / 2.0))
-            phi = np.arccos(r) / 3.0
-            w_max = q + 2.0 * p * np.cos(phi)
-            w_min = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
-        if not (w_min >= ratio * max(w_max, 1e-300)):
-            redo[j] = True
-            continue
-        c00 = s[1, 1] * s[2, 2] - s[1, 2] * s[2, 1]
-        c01 = s[0, 2] * s[2, 1] - s[0, 1] * s[2, 2]
-        c02 = s[0, 1] * s[1, 2] - s[0, 2] * s[1, 1]
-        c11 = s[0, 0] * s[2, 2] - s[0, 2] * s[2, 0]
-        c12 = s[0, 2] * s[1, 0] - s[0, 0] * s[1, 2]
-        c22 = s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]
-        c10 = s[1, 2] * s[2, 0] - s[1, 0] * s[2, 2]
-        c20 = s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0]
-        c21 = s[0, 1] * s[2, 0] - s[0, 0] * s[2, 1]
-        det = s[0, 0] * c00 + s[0, 1] * c10 + s[0, 2] * c20
-        out[j, 0, 0] = c00 / det / (sc[0] * sc[0])
-        out[j, 0, 1] = c01 / det / (sc[0] * sc[1])
-        out[j, 0, 2] = c02 / det / (sc[0] * sc[2])
-        out[j, 1, 0] = c10 / det / (sc[1] * sc[0])
-        out[j, 1, 1] = c11 / det / (sc[1] * sc[1])
-        out[j, 1, 2] = c12 / det / (sc[1] * sc[2])
-        out[j, 2, 0] = c20 / det / (sc[2] * sc[0])
-        out[j, 2, 1] = c21 / det / (sc[2] * sc[1])
-        out[j, 2, 2] = c22 / det / (sc[2] * sc[2])
-
-
-@njit(cache=True)
-def _nb_cholesky(a: F64, low: F64) -> bool:  # pragma: no cover - numba
-    """Lower Cholesky factor of ``a`` into ``low`` (zeroed); False if not positive definite."""
-    n = a.shape[0]
-    for j in range(n):
-        d = a[j, j]
-        for k in range(j):
-            d -= low[j, k] * low[j, k]
-        if not d > 0.0:
-            return False
-        low[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            t = a[i, j]
-            for k in range(j):
-                t -= low[i, k] * low[j, k]
-            low[i, j] = t / low[j, j]
-    return True
-
-
-@njit(cache=True)
-def _nb_cho_solve(low: F64, x: F64) -> None:  # pragma: no cover - numba
-    """Solve ``L L^T y = x`` in place."""
-    n = low.shape[0]
-    for i in range(n):
-        t = x[i]
-        for k in range(i):
-            t -= low[i, k] * x[k]
-        x[i] = t / low[i, i]
-    for i in range(n - 1, -1, -1):
-        t = x[i]
-        for k in range(i + 1, n):
-            t -= low[k, i] * x[k]
-        x[i] = t / low[i, i]
