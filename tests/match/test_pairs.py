@@ -165,6 +165,12 @@ def test_cli_pairs_only_reports_the_graph_with_the_block_files_thresholds(triple
     assert result.exit_code == 0, result.output
     assert "3 images, 3 candidate pairs, 3 selected, 1 component" in result.output
     assert "a & b: overlap" in result.output and "convergence 24.0 deg, selected" in result.output
+    # the models are enough for the graph: a block without rasters (points only)
+    bare = outdir / "block-bare.toml"
+    bare.write_text("\n".join(line for line in text.splitlines()
+                              if not line.startswith("raster")))
+    result = run(bare, "--pairs-only")
+    assert result.exit_code == 0 and "3 selected, 1 component" in result.output, result.output
     # the block file's [match] table, and the command line over it
     result = run(block, "--pairs-only")
     assert result.exit_code == 0, result.output

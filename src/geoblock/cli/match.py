@@ -247,8 +247,9 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
         where = f"{inputs[0]}: [match]: " if block_mode else ""
         raise click.UsageError(f"{where}{exc}") from None
     if pairs_only:
-        _print_pairs(spec, inputs, models, ids, no_crop, force, dem_source, dem_vertical, geoid,
-                     opts)
+        with using_scheduler(scheduler) as where:
+            _print_pairs(spec, inputs, models, ids, no_crop, force, dem_source, dem_vertical,
+                         geoid, opts, where)
         return
     if block_mode:
         assert spec is not None
@@ -302,12 +303,15 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
 
 def _print_pairs(spec: Any, inputs: tuple[str, ...], models: tuple[str, ...],
                  ids: tuple[str, ...], no_crop: bool, force: bool, dem_source: str | None,
-                 dem_vertical: str | None, geoid: str | None, opts: Any) -> None:
+                 dem_vertical: str | None, geoid: str | None, opts: Any, where: Any) -> None:
     """``--pairs-only``: the pair graph on standard output."""
     from geoblock.match.pairs import select_pairs
 
-    if spec is not None:
-        images = _block_images(spec, inputs[0])
+    images: Any
+    if spec is not None:  # the models are enough: no raster needed for the graph
+        from geoblock.io.models import open_model
+
+        images = {im.id: open_model(im.model) for im in spec.images}
         dem = open_dem_arg(dem_source, dem_vertical, geoid) if dem_source else \
             _block_dem(spec, inputs[0])
     else:
@@ -319,7 +323,7 @@ def _print_pairs(spec: Any, inputs: tuple[str, ...], models: tuple[str, ...],
     graph = select_pairs(images, dem, min_overlap=opts.min_overlap,
                          max_pairs_per_image=opts.max_pairs_per_image,
                          min_convergence_deg=opts.min_convergence_deg,
-                         max_convergence_deg=opts.max_convergence_deg)
+                         max_convergence_deg=opts.max_convergence_deg, scheduler=where)
     click.echo(graph.report(pairs=True))
 
 

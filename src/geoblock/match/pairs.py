@@ -368,7 +368,8 @@ def select_pairs(images: Any, dem: DemSource, *, min_overlap: float = 0.1,
                  max_pairs_per_image: int | None = 10, min_convergence_deg: float = 0.0,
                  max_convergence_deg: float | None = None, grid: int = FOOTPRINT_GRID,
                  ids: Sequence[str] | None = None,
-                 footprints: Sequence[Footprint] | None = None) -> PairGraph:
+                 footprints: Sequence[Footprint] | None = None,
+                 scheduler: Any = "synchronous") -> PairGraph:
     """Choose the pairs of images to match from their footprints on the DEM (module
     docstring): candidates by sort and sweep, overlap and convergence thresholds, a cap of
     pairs per image that never disconnects the graph.
@@ -393,6 +394,9 @@ def select_pairs(images: Any, dem: DemSource, *, min_overlap: float = 0.1,
         The images' ids (default their ``id`` attribute, else their position).
     footprints : sequence of Footprint, optional
         Precomputed footprints (:func:`footprint`), one per image.
+    scheduler : {"synchronous", "threads", "processes"} or distributed.Client
+        Where the footprints are computed, one task per image
+        (:func:`geoblock.match.tasks.run_tasks`); the graph is the same on every one.
 
     Returns
     -------
@@ -417,8 +421,21 @@ def select_pairs(images: Any, dem: DemSource, *, min_overlap: float = 0.1,
         raise MatchError(f"grid must be >= 2, got {grid!r}")
     names, models = _as_models(images, ids)
     n = len(models)
-    fps = list(footprints) if footprints is not None else [
-        footprint(m, dem, grid=int(grid)) for m in models]
+    if footprints is not None:
+        fps = list(footprints)
+    elif scheduler == "synchronous":
+        fps = [footprint(m, dem, grid=int(grid)) for m in models]
+    else:
+        import uuid
+
+        import dask
+
+        from geoblock.match.tasks import run_tasks
+
+        run = uuid.uuid4().hex[:12]  # keys unique to this run (a cluster may run others)
+        fps = list(run_tasks({f"fp-{k}": dask.delayed(footprint, pure=False)(
+            m, dem, grid=int(grid), dask_key_name=f"footprint-{run}-{k}")
+            for k, m in enumerate(models)}, scheduler).values())
     if len(fps) != n:
         raise MatchError(f"select_pairs: {len(fps)} footprints for {n} images")
     valid = np.array([f.valid for f in fps], bool)

@@ -532,22 +532,34 @@ def _match_pair(a: MatchImage, keypoints_a: Keypoints, b: MatchImage, kp_b: Keyp
 
 # ============================================================================== N images
 def _pairs(images: Sequence[MatchImage], dem: DemSource, options: MatchOptions,
-           progress: Progress, graph: PairGraph | None = None
+           progress: Progress, graph: PairGraph | None = None, scheduler: Any = "threads"
            ) -> list[tuple[int, int, Overlap]]:
     """The selected pairs (:func:`~geoblock.match.pairs.select_pairs` with the options'
-    thresholds, reported before any matching) with their overlaps in pixels."""
+    thresholds, reported before any matching) with their overlaps in pixels (footprints and
+    overlaps computed as tasks on ``scheduler``)."""
+    import uuid
+
+    import dask
+
+    from geoblock.match.tasks import run_tasks
+
     if graph is None:
         graph = select_pairs(images, dem, min_overlap=options.min_overlap,
                              max_pairs_per_image=options.max_pairs_per_image,
                              min_convergence_deg=options.min_convergence_deg,
-                             max_convergence_deg=options.max_convergence_deg)
+                             max_convergence_deg=options.max_convergence_deg,
+                             scheduler=scheduler)
     elif graph.image_ids != tuple(im.id for im in images):
         raise MatchError(f"the pair graph's images {list(graph.image_ids)[:5]} are not the "
                          f"images matched {[im.id for im in images][:5]}")
     progress(graph.report())
+    selected = graph.selected.tolist()
+    run = uuid.uuid4().hex[:12]  # keys unique to this run (a cluster may run others)
+    laps = run_tasks({f"overlap-{p}": dask.delayed(overlap, pure=False)(
+        images[i].model, images[j].model, dem, dask_key_name=f"overlap-{run}-{p}")
+        for p, (i, j) in enumerate(selected)}, scheduler)
     pairs = []
-    for i, j in graph.selected.tolist():
-        lap = overlap(images[i].model, images[j].model, dem)
+    for (i, j), lap in zip(selected, laps.values(), strict=True):
         if lap.fraction > 0:
             progress(f"  {images[i].id} & {images[j].id}: {100 * lap.fraction:.0f} % of "
                      f"{images[i].id} overlaps {images[j].id}")
@@ -611,7 +623,7 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     if dup:
         raise MatchError(f"duplicate image id(s) {dup}: each image needs its own id")
     say(f"overlaps of {len(images)} images on the DEM")
-    pairs_ = _pairs(images, dem, options, say, pairs)
+    pairs_ = _pairs(images, dem, options, say, pairs, scheduler)
     if not pairs_:
         from geoblock.dem import coverage_gap
 
