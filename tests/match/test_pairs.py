@@ -191,3 +191,11 @@ def test_cli_pairs_only_reports_the_graph_with_the_block_files_thresholds(triple
     result = run(block, "--pairs-only")
     assert result.exit_code == 2 and "[match]: match option min_overlap must be in [0, 1]" \
         in result.output
+
+
+def test_footprints_as_tasks_give_the_same_graph():
+    cams = block(3, 4)
+    one = select_pairs(cams, DEM, scheduler="synchronous")
+    many = select_pairs(cams, DEM, scheduler="threads")
+    for name in ("pairs", "overlap", "convergence_deg", "status"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(many, name))

@@ -134,3 +134,39 @@ def test_a_pair_that_fails_does_not_stop_the_others(triplet, tmp_path):
     assert set(tps.image.tolist()) == {"a", "b"} and len(tps.pairs) == 1
     assert "2 of 3 pairs failed" in "\n".join(messages)
     assert "from 1 pair(s) (2 failed)" in tps.summary()
+
+
+def test_real_models_and_dem_travel_to_workers(data_dir, tmp_path):
+    """The Ventoux Pleiades crops (RPCs of the geoblock-rpc plugin, a crop of the scene) and
+    SRTM with EGM96 heights: pickled as a process or a worker receives them, they predict
+    the same; matched on threads, the CSV is the synchronous one's."""
+    import pickle
+
+    import geoblock
+    from geoblock.match.geometry import predict
+
+    pytest.importorskip("geoblock_rpc", reason="the Ventoux RPCs need the geoblock-rpc plugin")
+    paths = [data_dir / f"shareloc/{kind}/phr_ventoux/{side}_image.{ext}"
+             for side in ("left", "right") for kind, ext in (("image", "tif"), ("rpc", "geom"))]
+    srtm = data_dir / "shareloc/dtm/srtm_ventoux/srtm90_non_void_filled/N44E005.hgt"
+    for path in [*paths, srtm]:
+        if not path.exists():
+            pytest.skip(f"real data not found: {path}")
+    images = [MatchImage.from_files("left", paths[0], paths[1]),
+              MatchImage.from_files("right", paths[2], paths[3])]
+    dem = geoblock.open_dem(srtm, vertical="geoid")
+    sent_images, sent_dem = pickle.loads(pickle.dumps((images, dem)))
+    rows, cols = np.meshgrid(np.linspace(0, 499, 5), np.linspace(0, 499, 5))
+    here = predict(images[0].model, images[1].model, dem, rows.ravel(), cols.ravel())
+    there = predict(sent_images[0].model, sent_images[1].model, sent_dem, rows.ravel(),
+                    cols.ravel())
+    assert here.ok.sum() >= 5 and np.array_equal(here.ok, there.ok)
+    np.testing.assert_array_equal(here.row, there.row)
+    np.testing.assert_array_equal(here.col, there.col)
+    assert sent_images[0].image.read((0, 8, 0, 8)).tolist() == \
+        images[0].image.read((0, 8, 0, 8)).tolist()
+    from geoblock.match import match_images
+
+    digests = {_sha256(match_images(images, dem, scheduler=s), tmp_path / f"{s}.csv")
+               for s in ("synchronous", "threads")}
+    assert len(digests) == 1
