@@ -170,3 +170,18 @@ def test_real_models_and_dem_travel_to_workers(data_dir, tmp_path):
     digests = {_sha256(match_images(images, dem, scheduler=s), tmp_path / f"{s}.csv")
                for s in ("synchronous", "threads")}
     assert len(digests) == 1
+
+
+def test_without_the_candidates_the_csv_and_the_counts_are_the_same(triplet, reference,
+                                                                      tmp_path):
+    outdir, _ = triplet
+    tps = match_block(outdir / "block.toml", scheduler="threads",
+                      options=MatchOptions(keep_candidates=False))
+    assert _sha256(tps, tmp_path / "tp.csv") == reference[1]
+    full = reference[0]
+    assert tps.counts() == full.counts() and full.counts()["candidates"] > 1000
+    for small, big in zip(tps.pairs, full.pairs, strict=True):
+        assert small.counts() == big.counts()
+        assert small.status.size == big.counts()["kept"] < big.status.size
+        assert small.summary().rsplit(";", 1)[0] == big.summary().rsplit(";", 1)[0]
+    assert len(tps.diagnostics()["status"]) == full.counts()["kept"]

@@ -227,7 +227,9 @@ def match(inputs: tuple[str, ...], output: str, models: tuple[str, ...], ids: tu
     options: dict[str, Any] = {
         "search_px": search_px, "max_keypoints": max_keypoints,
         "contrast_threshold": contrast_threshold, "ratio": ratio, "min_score": min_score,
-        "order": order, "k": k_sigma, "sigma_px": sigma_px, "id_prefix": id_prefix}
+        "order": order, "k": k_sigma, "sigma_px": sigma_px, "id_prefix": id_prefix,
+        # the rejected candidates only for --diagnostics (a large block's memory)
+        "keep_candidates": diagnostics is not None}
     if dem_sigma is not None:
         options["dem_sigma_m"] = dem_sigma
     pair_opts: dict[str, Any] = {

@@ -131,6 +131,10 @@ class MatchOptions:
     min_convergence_deg, max_convergence_deg : float, float or None
         Bounds of the angle between two images' lines of sight at their overlap's centre,
         degrees; the lower one for stereo only (tie points need none), None: no upper one.
+    keep_candidates : bool
+        Keep every candidate of every pair in the result (:attr:`TiePoints.pairs`, for
+        ``diagnostics()``); False: the kept matches only, the others counted
+        (:meth:`PairMatches.compact`), so that a large block's results stay small.
     """
 
     max_keypoints: int = 20000
@@ -152,6 +156,7 @@ class MatchOptions:
     max_pairs_per_image: int | None = 10
     min_convergence_deg: float = 0.0
     max_convergence_deg: float | None = None
+    keep_candidates: bool = True
 
     def __post_init__(self) -> None:
         def need(ok: bool, name: str, what: str) -> None:
@@ -184,6 +189,7 @@ class MatchOptions:
         need(isinstance(self.min_convergence_deg, int | float)
              and isinstance(top, int | float) and 0 <= self.min_convergence_deg <= top <= 180,
              "min_convergence_deg", "in [0, max_convergence_deg] (degrees, max <= 180)")
+        need(isinstance(self.keep_candidates, bool), "keep_candidates", "True or False")
         need(isinstance(self.id_prefix, str) and "," not in self.id_prefix
              and self.id_prefix.strip() == self.id_prefix, "id_prefix",
              "a text without commas or surrounding spaces")

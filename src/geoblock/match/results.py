@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -68,6 +68,9 @@ class PairMatches:
     search_px : float
         The first pass' window radius used, pixels.
     seconds : float
+    not_held : mapping of str to int
+        Candidates not held in the arrays, per status (:meth:`compact`: the rejected ones
+        of a pair matched without keeping its candidates); :meth:`counts` includes them.
     """
 
     image_a: str
@@ -93,6 +96,7 @@ class PairMatches:
     sigma_h_m: float
     search_px: float
     seconds: float
+    not_held: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def kept(self) -> np.ndarray:
@@ -100,10 +104,28 @@ class PairMatches:
         return self.status == "kept"
 
     def counts(self) -> dict[str, int]:
-        """Candidates, kept, and rejected per test."""
-        out = {"candidates": int(self.status.size), "kept": int(self.kept.sum())}
-        out.update({name: int((self.status == name).sum()) for name in REJECTIONS})
+        """Candidates, kept, and rejected per test (those not held included)."""
+        out = {"candidates": int(self.status.size) + sum(self.not_held.values()),
+               "kept": int(self.kept.sum()) + int(self.not_held.get("kept", 0))}
+        out.update({name: int((self.status == name).sum()) + int(self.not_held.get(name, 0))
+                    for name in REJECTIONS})
         return out
+
+    def compact(self) -> PairMatches:
+        """The kept matches only, the others counted in :attr:`not_held` (what the tracks
+        need, without the rejected candidates' arrays: a large block's pairs' results in a
+        fraction of the memory); itself when nothing was kept."""
+        keep = self.kept
+        if not keep.any() or keep.all():
+            return self
+        names, counts = np.unique(self.status[~keep], return_counts=True)
+        not_held = dict(self.not_held)
+        for name, count in zip(names.tolist(), counts.tolist(), strict=True):
+            not_held[name] = not_held.get(name, 0) + int(count)
+        arrays = {f: getattr(self, f)[keep] for f in (
+            "index_a", "index_b", "row_a", "col_a", "row_b", "col_b", "pred_row", "pred_col",
+            "ratio", "score", "perp", "height_m", "status")}
+        return replace(self, **arrays, not_held=not_held)
 
     def offset_px(self) -> tuple[float, float]:
         """The models' disagreement where the matches are: the bias's mean over the kept
@@ -221,10 +243,11 @@ class TiePoints:
         return ImagePoints.from_columns(self.to_columns(ictp_share), source="geoblock match")
 
     def diagnostics(self) -> dict[str, np.ndarray]:
-        """Every candidate of every pair: ``pair, image_a, image_b, row_a, col_a, row_b,
-        col_b`` (the models' pixels), ``pred_row, pred_col`` (the models' prediction in B,
-        before the bias), ``offset_row, offset_col`` (match minus prediction), ``ratio,
-        score, perp_px, height_m, status``."""
+        """Every candidate held of every pair (the kept ones only where the matching did not
+        keep the candidates: ``MatchOptions.keep_candidates``): ``pair, image_a, image_b,
+        row_a, col_a, row_b, col_b`` (the models' pixels), ``pred_row, pred_col`` (the
+        models' prediction in B, before the bias), ``offset_row, offset_col`` (match minus
+        prediction), ``ratio, score, perp_px, height_m, status``."""
         parts: dict[str, list[np.ndarray]] = {}
         for p in self.pairs:
             oa = self.offsets.get(p.image_a, (0.0, 0.0))

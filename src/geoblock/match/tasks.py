@@ -243,7 +243,7 @@ def _pair(a: MatchImage, kp_a: Keypoints, b: MatchImage, kp_b: Keypoints, dem: D
         if a.name not in text and b.name not in text:
             text = f"{a.name} and {b.name}: {text}"
         return None, messages, text
-    return res, messages, None
+    return (res if options.keep_candidates else res.compact()), messages, None
 
 
 def _link(a: MatchImage, b: MatchImage, dem: DemSource, row_a: np.ndarray, col_a: np.ndarray,
