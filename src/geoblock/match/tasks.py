@@ -25,8 +25,9 @@ every worker (a shared file system).
 Memory per task: a keypoint task, SIFT's working memory of one 2048 x 2048 px chunk (about
 60 bytes a pixel, 250 MB) and the image's keypoints (about 600 bytes each: 12 MB for 20000);
 a pair task, both images' keypoints (24 MB at 20000 each), the candidates' arrays (about
-150 bytes each) and one tile pair of pixels as float64 (about 2 x 1100^2 x 8 bytes = 20 MB
-for 1024 px tiles, more where B's pixels are smaller than A's).
+150 bytes each; only the kept ones travel back unless ``MatchOptions.keep_candidates``) and
+one tile pair of pixels as float64 (about 2 x 1100^2 x 8 bytes = 20 MB for 1024 px tiles,
+more where B's pixels are smaller than A's).
 """
 
 from __future__ import annotations
