@@ -657,8 +657,8 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
         windows.append(_union(boxes) if boxes else None)
     say(f"matching {len(pairs_)} pairs of {sum(w is not None for w in windows)} images "
         f"({scheduler if isinstance(scheduler, str) else 'distributed'} scheduler)")
-    positions, outcome, failures = match_pairs(images, dem, pairs_, searches, windows, options,
-                                               scheduler, say)
+    counts, outcome, failures, positions_b = match_pairs(
+        images, dem, pairs_, searches, windows, options, scheduler, say)
     done = [p for p, res in enumerate(outcome) if res is not None]
     failed = tuple((images[i].id, images[j].id, str(failures[p]))
                    for p, (i, j, _) in enumerate(pairs_) if outcome[p] is None)
@@ -673,13 +673,14 @@ def match_images(images: Sequence[MatchImage], dem: DemSource, *,
     sigmas = [options.sigma_px if options.sigma_px is not None
               else max(res.sigma_px / math.sqrt(2.0), 0.05) for res in results]
     columns, dropped = join_tracks(
-        images, positions, results, [pairs_[p][:2] for p in done], options, sigmas,
-        lambda jobs: refine_links(images, dem, jobs, options, scheduler))
+        images, counts, results, [pairs_[p][:2] for p in done], options, sigmas,
+        lambda jobs: refine_links(images, dem, jobs, options, scheduler),
+        [positions_b[p] for p in done])
     order = columns.pop("_order")
     columns = {k: v[order] for k, v in columns.items()}
     return TiePoints(columns["id"], columns["image"], columns["row"], columns["col"],
                      columns["sigma"], tuple(results), tuple(ids),
-                     {im.id: int(p[0].size) for im, p in zip(images, positions, strict=True)},
+                     {im.id: n for im, n in zip(images, counts, strict=True)},
                      dropped,
                      time.perf_counter() - start,
                      {im.id: im.offset for im in images}, failed)

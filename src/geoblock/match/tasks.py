@@ -220,31 +220,36 @@ def _detect(im: MatchImage, window: tuple[int, int, int, int], options: MatchOpt
                             contrast_threshold=options.contrast_threshold)
 
 
-def _positions(kp: Keypoints) -> tuple[np.ndarray, np.ndarray]:
-    """The keypoints' positions (all the tracks need of them)."""
-    return kp.row, kp.col
+def _count(kp: Keypoints) -> int:
+    """How many keypoints an image has (the keypoints stay with the workers)."""
+    return len(kp)
 
 
 def _pair(a: MatchImage, kp_a: Keypoints, b: MatchImage, kp_b: Keypoints, dem: DemSource,
           lap: Overlap, search: float, options: MatchOptions
-          ) -> tuple[PairMatches | None, list[str], str | None]:
-    """Match one pair (a task): its result (None if it failed), its messages and why it
-    failed (a pair that cannot be matched does not stop the block's other pairs)."""
+          ) -> tuple[PairMatches | None, list[str], str | None,
+                     tuple[np.ndarray, np.ndarray]]:
+    """Match one pair (a task): its result (None if it failed), its messages, why it failed
+    (a pair that cannot be matched does not stop the block's other pairs) and the positions
+    of B's keypoints of the kept matches (for the tracks)."""
     from geoblock.match.pipeline import _match_pair
 
     messages: list[str] = []
+    none = (np.zeros(0), np.zeros(0))
     if not len(kp_a) or not len(kp_b):
         empty = a if not len(kp_a) else b
         return None, messages, (f"{empty.name}: no SIFT keypoint found in its overlap with "
-                                "the other images (a flat, saturated or nodata area?)")
+                                "the other images (a flat, saturated or nodata area?)"), none
     try:
         res = _match_pair(a, kp_a, b, kp_b, dem, lap, search, options, messages.append)
     except MatchError as exc:
         text = str(exc)
         if a.name not in text and b.name not in text:
             text = f"{a.name} and {b.name}: {text}"
-        return None, messages, text
-    return (res if options.keep_candidates else res.compact()), messages, None
+        return None, messages, text, none
+    kept = res.index_b[res.kept]
+    return (res if options.keep_candidates else res.compact()), messages, None, (
+        kp_b.row[kept], kp_b.col[kept])
 
 
 def _link(a: MatchImage, b: MatchImage, dem: DemSource, row_a: np.ndarray, col_a: np.ndarray,
@@ -262,12 +267,12 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
                 pairs: Sequence[tuple[int, int, Overlap]], searches: Sequence[float],
                 windows: Sequence[tuple[int, int, int, int] | None], options: MatchOptions,
                 scheduler: Any, say: Callable[[str], None]
-                ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[PairMatches | None],
-                           list[str | None]]:
-    """The keypoint and pair tasks of a block on ``scheduler``: each image's keypoints'
-    positions (none where ``windows`` is None), the pairs' results (None where a pair
-    failed) and why each failed (None where it did not), in the order of ``images`` and
-    ``pairs``."""
+                ) -> tuple[list[int], list[PairMatches | None], list[str | None],
+                           list[tuple[np.ndarray, np.ndarray]]]:
+    """The keypoint and pair tasks of a block on ``scheduler``: each image's number of
+    keypoints (0 where ``windows`` is None), the pairs' results (None where a pair failed),
+    why each failed (None where it did not) and the positions of B's keypoints of each
+    pair's kept matches, in the order of ``images`` and ``pairs``."""
     import uuid
 
     import dask
@@ -281,8 +286,8 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
             continue
         kps[k] = delayed(_detect, pure=False)(im, window, options,
                                               dask_key_name=f"keypoints-{run}-{k}")
-        tasks[f"positions-{k}"] = delayed(_positions, pure=False)(
-            kps[k], dask_key_name=f"positions-{run}-{k}")
+        tasks[f"count-{k}"] = delayed(_count, pure=False)(
+            kps[k], dask_key_name=f"count-{run}-{k}")
     for p, ((i, j, lap), search) in enumerate(zip(pairs, searches, strict=True)):
         tasks[f"pair-{p}"] = delayed(_pair, pure=False)(
             images[i], kps[i], images[j], kps[j], dem, lap, search, options,
@@ -290,11 +295,11 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
     finished = [0]
 
     def done(name: str, value: Any) -> None:
-        if name.startswith("positions-"):
+        if name.startswith("count-"):
             k = int(name.split("-")[1])
-            say(f"  {images[k].id}: {value[0].size} keypoints")
+            say(f"  {images[k].id}: {value} keypoints")
         else:
-            res, messages, failed = value
+            res, messages, failed, _ = value
             finished[0] += 1
             for m in messages:
                 say(m)
@@ -306,11 +311,11 @@ def match_pairs(images: Sequence[MatchImage], dem: DemSource,
                 say(f"  [{finished[0]}/{len(pairs)}] {res.summary()}")
 
     out = run_tasks(tasks, scheduler, done)
-    positions = [out.get(f"positions-{k}", (np.zeros(0), np.zeros(0)))
-                 for k in range(len(images))]
+    counts = [int(out.get(f"count-{k}", 0)) for k in range(len(images))]
     results = [out[f"pair-{p}"][0] for p in range(len(pairs))]
     failures = [out[f"pair-{p}"][2] for p in range(len(pairs))]
-    return positions, results, failures
+    positions_b = [out[f"pair-{p}"][3] for p in range(len(pairs))]
+    return counts, results, failures, positions_b
 
 
 def refine_links(images: Sequence[MatchImage], dem: DemSource,

@@ -29,18 +29,18 @@ Refine = Callable[[list[tuple[int, int, np.ndarray, np.ndarray, np.ndarray, np.n
                   list[tuple[np.ndarray, np.ndarray, np.ndarray]]]
 
 
-def join_tracks(images: Sequence[MatchImage],
-                positions: Sequence[tuple[np.ndarray, np.ndarray]],
+def join_tracks(images: Sequence[MatchImage], keypoints: Sequence[int],
                 results: Sequence[PairMatches], pair_index: Sequence[tuple[int, int]],
-                options: MatchOptions, sigmas: Sequence[float], refine: Refine
+                options: MatchOptions, sigmas: Sequence[float], refine: Refine,
+                positions_b: Sequence[tuple[np.ndarray, np.ndarray]]
                 ) -> tuple[dict[str, np.ndarray], int]:
     """Join the kept matches of every pair into tracks.
 
     Parameters
     ----------
     images : sequence of MatchImage
-    positions : sequence of (ndarray, ndarray)
-        Each image's keypoints' rows and columns (the pairs' indices point into them).
+    keypoints : sequence of int
+        Each image's number of keypoints (the pairs' indices point into them).
     results : sequence of PairMatches
         The pairs' results, in the order of ``pair_index``.
     pair_index : sequence of (int, int)
@@ -51,6 +51,10 @@ def join_tracks(images: Sequence[MatchImage],
     refine : callable
         Refines the points a track links to its reference only through a third image: given
         ``[(i, j, row_i, col_i, row_j, col_j), ...]``, returns ``[(row_j, col_j, ok), ...]``.
+    positions_b : sequence of (ndarray, ndarray)
+        Per result, the position of B's keypoint of each kept match (A's is ``row_a,
+        col_a``): the tracks hold the keypoints they use only, not every image's (memory
+        in proportion to the matches, not to the block's keypoints).
 
     Returns
     -------
@@ -63,25 +67,33 @@ def join_tracks(images: Sequence[MatchImage],
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    sizes = [int(p[0].size) for p in positions]
-    base = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
-    total = int(base[-1])
+    sizes = [int(k) for k in keypoints]
+    base = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     link_a, link_b, link_rb, link_cb, link_sigma = [], [], [], [], []
-    for (i, j), res, s in zip(pair_index, results, sigmas, strict=True):
+    pos_a, pos_b = [], []
+    for (i, j), res, s, pb in zip(pair_index, results, sigmas, positions_b, strict=True):
         kept = res.kept
         link_a.append(base[i] + res.index_a[kept])
         link_b.append(base[j] + res.index_b[kept])
         link_rb.append(res.row_b[kept])
         link_cb.append(res.col_b[kept])
         link_sigma.append(np.full(int(kept.sum()), s))
-    la, lb = np.concatenate(link_a), np.concatenate(link_b)
+        pos_a.append(np.column_stack([res.row_a[kept], res.col_a[kept]]))
+        pos_b.append(np.column_stack([np.asarray(pb[0], float), np.asarray(pb[1], float)]))
+    ga, gb = np.concatenate(link_a), np.concatenate(link_b)
     lrb, lcb, lsig = (np.concatenate(v) for v in (link_rb, link_cb, link_sigma))
+    # the keypoints the links use, numbered in the order of (image, keypoint)
+    used, inverse = np.unique(np.concatenate([ga, gb]), return_inverse=True)
+    la, lb = inverse[:ga.size], inverse[ga.size:]
+    total = int(used.size)
+    image_of = np.searchsorted(base, used, side="right") - 1
+    kp_pos = np.empty((total, 2))
+    kp_pos[la] = np.concatenate(pos_a)
+    kp_pos[lb] = np.concatenate(pos_b)
+    kp_row, kp_col = kp_pos[:, 0], kp_pos[:, 1]
     graph = coo_matrix((np.ones(la.size), (la, lb)), shape=(total, total))
     _, label = connected_components(graph, directed=False)
-    image_of = np.repeat(np.arange(len(sizes)), sizes)
-    in_track = np.zeros(total, bool)
-    in_track[la] = in_track[lb] = True
-    nodes = np.flatnonzero(in_track)
+    nodes = np.arange(total)
     comp = label[nodes]
     # a track with two keypoints of one image is inconsistent: dropped
     pair_key = comp.astype(np.int64) * len(sizes) + image_of[nodes]
@@ -95,8 +107,6 @@ def join_tracks(images: Sequence[MatchImage],
     is_ref = np.r_[True, comp[1:] != comp[:-1]]
     ref_node = nodes[is_ref][np.cumsum(is_ref) - 1]
     # positions: the reference's keypoint; others from the link with the reference, if any
-    kp_row = np.concatenate([np.asarray(p[0], float) for p in positions])
-    kp_col = np.concatenate([np.asarray(p[1], float) for p in positions])
     row = kp_row[nodes].copy()
     col = kp_col[nodes].copy()
     sigma = np.zeros(nodes.size)
