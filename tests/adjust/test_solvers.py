@@ -313,3 +313,58 @@ def test_no_dense_k_by_k_above_dense_limit(monkeypatch):
     finally:
         tracemalloc.stop()
     assert peak < 0.15 * k * k * 8
+
+
+def _cross_group_problem(seed: int = 9) -> dict:
+    """:func:`_problem` with two parameters no image owns (datum shifts) and measurements
+    whose columns span an image's parameters, another image's and a shift (as the engine's
+    pseudo-measurements do), in compressed columns."""
+    p = _problem(seed, n_images=4, n_points=40)
+    rng = np.random.default_rng(seed)
+    k = p["n_params"] + 2
+    cols = p["gidx"][p["image_of"]].copy()
+    m = cols.shape[0]
+    extra = np.full((m, 2), -1, np.intp)
+    a_extra = np.zeros((m, 2, 2))
+    some = rng.random(m) < 0.3
+    other = p["gidx"][(p["image_of"] + 1) % 4, 0]
+    extra[some, 0] = other[some]
+    extra[some, 1] = k - 2 + rng.integers(0, 2, some.sum())
+    a_extra[some] = rng.normal(size=(some.sum(), 2, 2))
+    prior = np.zeros((k, k))
+    prior[:-2, :-2] = p["n_pp_prior"]
+    prior[-2:, -2:] = [[0.3, 0.1], [0.1, 0.2]]
+    return {**p, "n_params": k, "cols": np.concatenate([cols, extra], axis=1),
+            "a": np.concatenate([p["a"], a_extra], axis=2), "n_pp_prior": prior,
+            "b_p_prior": np.concatenate([p["b_p_prior"], [0.4, -0.2]])}
+
+
+@pytest.mark.parametrize("damping", [0.0, 0.2])
+def test_csr_assembly_equals_triplets_and_dense(monkeypatch, damping):
+    p = _cross_group_problem()
+    monkeypatch.setattr(normal, "USE_NUMBA", False)
+    ref = NormalSystem(**{**p, "solver": "dense"})
+    dp_ref, dx_ref = ref.solve(damping)
+    got = {}
+    for numba in (True, False):
+        for csr in (True, False):
+            monkeypatch.setattr(normal, "USE_NUMBA", numba)
+            monkeypatch.setattr(normal, "CSR_ASSEMBLY", csr)
+            system = NormalSystem(**{**p, "solver": "direct"})
+            dp, dx = system.solve(damping)
+            assert scipy.sparse.issparse(system.reduced)
+            assert (system._pattern is not None) == (numba and csr)
+            scale = np.abs(ref.reduced).max()
+            assert np.abs(system.reduced.toarray() - ref.reduced).max() <= 1e-12 * scale
+            assert np.allclose(system.n_pp.toarray(), ref.n_pp, rtol=0, atol=1e-12 * scale)
+            assert np.abs(dp - dp_ref).max() <= 1e-9 * np.abs(dp_ref).max()
+            assert np.abs(dx - dx_ref).max() <= 1e-9 * np.abs(dx_ref).max()
+            got[numba, csr] = dp
+    # the pattern: exactly the blocks of the groups a point or the prior links
+    monkeypatch.setattr(normal, "USE_NUMBA", True)
+    monkeypatch.setattr(normal, "CSR_ASSEMBLY", True)
+    system = NormalSystem(**{**p, "solver": "direct"})
+    system.solve(damping)
+    structural = np.zeros(system.reduced.shape, bool)
+    structural[system.reduced.nonzero()] = True
+    assert np.all(structural[np.abs(ref.reduced) > 0])

@@ -387,3 +387,176 @@ def _nb_cho_solve(low: F64, x: F64) -> None:  # pragma: no cover - numba
         for k in range(i + 1, n):
             t -= low[k, i] * x[k]
         x[i] = t / low[i, i]
+
+
+# ------------------------------------------------------------- the reduced system in CSR
+@njit(cache=True)
+def _nb_point_groups(  # pragma: no cover - numba
+    cols: Idx, order: Idx, start: Idx, group_of: Idx, n_groups: int, count_only: bool,
+    count: Idx, keys: Idx,
+) -> None:
+    """The groups (images) each point's measurements touch: ``count[j]`` how many distinct
+    ones; unless ``count_only``, the keys ``G1 * G + G2`` of all their ordered pairs written
+    from ``keys[sum(count[:j]^2)]`` on (``count`` then as the first pass left it)."""
+    kmax = cols.shape[1]
+    most = 0
+    for j in range(start.size - 1):
+        most = max(most, (start[j + 1] - start[j]) * kmax)
+    buf = np.empty(max(most, 1), np.int64)
+    at = 0
+    for j in range(start.size - 1):
+        d = 0
+        for q in range(start[j], start[j + 1]):
+            g = cols[order[q]]
+            for r in range(kmax):
+                if g[r] < 0:
+                    continue
+                grp = group_of[g[r]]
+                new = True
+                for t in range(d):
+                    if buf[t] == grp:
+                        new = False
+                        break
+                if new:
+                    buf[d] = grp
+                    d += 1
+        if count_only:
+            count[j] = d
+            continue
+        for s in range(d):
+            for t in range(d):
+                keys[at] = buf[s] * n_groups + buf[t]
+                at += 1
+
+
+@njit(cache=True)
+def _nb_csr_position(  # pragma: no cover - numba
+    g1: int, g2: int, indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx, gnbr: Idx,
+    slot_offset: Idx,
+) -> int:
+    """Where ``S[g1, g2]`` is in the CSR data: its row's start, the offset of ``g2``'s group
+    among the row group's neighbours (binary search), ``g2``'s rank in its group; -1 if the
+    pattern does not hold it."""
+    a = group_of[g1]
+    b = group_of[g2]
+    lo = gptr[a]
+    end = gptr[a + 1]
+    hi = end
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if gnbr[mid] < b:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo == end or gnbr[lo] != b:
+        return -1
+    return indptr[g1] + slot_offset[lo] + local_of[g2]
+
+
+@njit(cache=True)
+def _nb_slot(a: int, b: int, gptr: Idx, gnbr: Idx, slot_offset: Idx) -> int:  # pragma: no cover
+    """Where group ``b``'s columns start in the rows of group ``a`` (which must hold it)."""
+    lo = gptr[a]
+    hi = gptr[a + 1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if gnbr[mid] < b:
+            lo = mid + 1
+        else:
+            hi = mid
+    return slot_offset[lo]
+
+
+@njit(cache=True)
+def _nb_positions(  # pragma: no cover - numba
+    rows: Idx, cols: Idx, indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx, gnbr: Idx,
+    slot_offset: Idx, out: Idx,
+) -> None:
+    """:func:`_nb_csr_position` of each ``(rows[i], cols[i])``."""
+    for i in range(rows.size):
+        out[i] = _nb_csr_position(rows[i], cols[i], indptr, group_of, local_of, gptr, gnbr,
+                                  slot_offset)
+
+
+@njit(cache=True)
+def _nb_npp_csr(  # pragma: no cover - numba
+    a: F64, cols: Idx, data: F64, indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx,
+    gnbr: Idx, slot_offset: Idx,
+) -> None:
+    """Each measurement's ``A^T A`` added into the CSR ``data`` of ``N_pp``."""
+    kmax = a.shape[2]
+    n_groups = gptr.size - 1
+    for m in range(a.shape[0]):
+        g = cols[m]
+        last = -1
+        off = 0
+        for r in range(kmax):
+            if g[r] < 0:
+                continue
+            grp_r = group_of[g[r]]
+            for c in range(kmax):
+                if g[c] < 0:
+                    continue
+                grp_c = group_of[g[c]]
+                if grp_r * n_groups + grp_c != last:
+                    off = _nb_slot(grp_r, grp_c, gptr, gnbr, slot_offset)
+                    last = grp_r * n_groups + grp_c
+                data[indptr[g[r]] + off + local_of[g[c]]] += (a[m, 0, r] * a[m, 0, c]
+                                                              + a[m, 1, r] * a[m, 1, c])
+
+
+@njit(cache=True)
+def _nb_reduce_csr(  # pragma: no cover - numba
+    n_px: F64, cinv: F64, b_x: F64, cols: Idx, order: Idx, start: Idx, data: F64, rhs: F64,
+    indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx, gnbr: Idx, slot_offset: Idx,
+) -> None:
+    """:func:`_nb_reduce` over every point, subtracted in place from the CSR ``data``."""
+    kmax = n_px.shape[1]
+    n_groups = gptr.size - 1
+    most = 0
+    for j in range(start.size - 1):
+        most = max(most, start[j + 1] - start[j])
+    left = np.empty((most, kmax, 3))
+    cbx = np.empty(3)
+    for j in range(start.size - 1):
+        m0 = start[j]
+        n = start[j + 1] - m0
+        cj = cinv[j]
+        for i in range(3):
+            cbx[i] = cj[i, 0] * b_x[j, 0] + cj[i, 1] * b_x[j, 1] + cj[i, 2] * b_x[j, 2]
+        for q in range(n):
+            m = order[m0 + q]
+            g = cols[m]
+            for r in range(kmax):
+                for c in range(3):
+                    left[q, r, c] = (n_px[m, r, 0] * cj[0, c] + n_px[m, r, 1] * cj[1, c]
+                                     + n_px[m, r, 2] * cj[2, c])
+                if g[r] >= 0:
+                    rhs[g[r]] -= (n_px[m, r, 0] * cbx[0] + n_px[m, r, 1] * cbx[1]
+                                  + n_px[m, r, 2] * cbx[2])
+        for qa in range(n):
+            ga = cols[order[m0 + qa]]
+            for qb in range(qa, n):
+                mb = order[m0 + qb]
+                gb = cols[mb]
+                last_ab = -1  # the group pair of the last slot looked up, and its offsets
+                off_ab = 0
+                off_ba = 0
+                for r in range(kmax):
+                    if ga[r] < 0:
+                        continue
+                    grp_a = group_of[ga[r]]
+                    for c in range(kmax):
+                        if gb[c] < 0:
+                            continue
+                        grp_b = group_of[gb[c]]
+                        key = grp_a * n_groups + grp_b
+                        if key != last_ab:
+                            off_ab = _nb_slot(grp_a, grp_b, gptr, gnbr, slot_offset)
+                            off_ba = _nb_slot(grp_b, grp_a, gptr, gnbr, slot_offset)
+                            last_ab = key
+                        val = (left[qa, r, 0] * n_px[mb, c, 0] + left[qa, r, 1] * n_px[mb, c, 1]
+                               + left[qa, r, 2] * n_px[mb, c, 2])
+                        data[indptr[ga[r]] + off_ab + local_of[gb[c]]] -= val
+                        if qb != qa:
+                            data[indptr[gb[c]] + off_ba + local_of[ga[r]]] -= val

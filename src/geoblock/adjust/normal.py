@@ -10,9 +10,26 @@ point blocks are inverted per point (``C_j``) and the point unknowns eliminated:
     S = N_pp - sum_j N_pj C_j N_jp,     s = b_p - sum_j N_pj C_j b_j
 
 ``S`` is assembled from the pairs of measurements of each point (a point seen by ``n``
-images adds ``n^2`` blocks). It is solved densely (Cholesky) up to :data:`DENSE_LIMIT`
-parameters, and sparsely above (its triplets built for runs of points,
-:data:`SPARSE_CHUNK_TRIPLETS` at a time); the point steps follow by back-substitution.
+images adds ``n^2`` blocks): as a dense array with the dense solver (at most
+:data:`DENSE_LIMIT` parameters), else in place into its CSR pattern (the blocks of the
+images each point links, built once per system; :data:`CSR_ASSEMBLY`) so that no (K, K)
+dense array is ever built. The point steps follow by back-substitution.
+
+Solvers (``NormalSystem(..., solver=)``, :mod:`geoblock.adjust._solvers`): ``"dense"``
+Cholesky, ``"direct"`` sparse LDL^T (SuperLU, minimum degree ordering), ``"iterative"``
+conjugate gradients with a block-Jacobi preconditioner (one block per image), stopped when
+no unknown errs by more than :data:`~geoblock.adjust._solvers.PCG_TOLERANCE` of its
+posterior sigma (estimated), an :class:`IterativeSolverError` when the iteration cap comes
+first. ``"auto"``: dense up to :data:`AUTO_DENSE_LIMIT`, then direct while the factor's
+estimated memory is at most :data:`DIRECT_MEMORY_LIMIT`, iterative beyond; the choice and
+its outcome are :attr:`NormalSystem.solver_used` and :attr:`NormalSystem.solver_report`.
+
+Covariances: :meth:`NormalSystem.parameter_cofactor` gives the dense ``Q_pp`` up to
+:data:`DENSE_COFACTOR_LIMIT` parameters, or, for the columns asked
+(:meth:`NormalSystem.cofactor_columns` of some images and points), a
+:class:`SelectedCofactor` solved from the factorisation; :meth:`NormalSystem.point_cofactors`
+and :meth:`NormalSystem.hat_blocks` take either (NaN for the points and measurements whose
+columns a selection does not hold).
 
 Everything is vectorised over measurements and points: no Python loop runs over either.
 Each measurement carries its parameter partials in the columns it touches, with their global
@@ -32,6 +49,7 @@ temporaries and its scatter; the Schur complement is accumulated from each point
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, TypeAlias
 
@@ -49,21 +67,30 @@ from geoblock.adjust._kernels import (
     _nb_chunks,
     _nb_hat_blocks,
     _nb_inv3,
+    _nb_npp_csr,
     _nb_npp_triplets,
     _nb_point_cofactors,
+    _nb_point_groups,
+    _nb_positions,
     _nb_reduce,
+    _nb_reduce_csr,
 )
 from geoblock.adjust._solvers import IterativeSolverError, SolverReport
 from geoblock.typing import Float64Array, IndexArray
 
-__all__ = ["DENSE_COFACTOR_LIMIT", "DENSE_LIMIT", "DIRECT_MEMORY_LIMIT", "SOLVERS", "USE_NUMBA",
-           "IterativeSolverError", "NormalSystem", "Pairs", "SelectedCofactor",
-           "SingularPoints", "SolverReport", "compress_columns", "measurement_pairs"]
+__all__ = ["AUTO_DENSE_LIMIT", "CSR_ASSEMBLY", "DENSE_COFACTOR_LIMIT", "DENSE_LIMIT",
+           "DIRECT_MEMORY_LIMIT", "SOLVERS", "USE_NUMBA", "IterativeSolverError",
+           "NormalSystem", "Pairs", "SelectedCofactor", "SingularPoints", "SolverReport",
+           "compress_columns", "measurement_pairs"]
 
 #: up to this many parameters the reduced system is dense and solved by Cholesky
 #: (``solver="auto"``); above, no (K, K) dense array is built
 DENSE_LIMIT = 4000
-#: ``solver="auto"`` above DENSE_LIMIT: the sparse direct factorisation while its estimated
+#: ``solver="auto"`` solves densely up to this many parameters (at most DENSE_LIMIT). The
+#: sparse direct path is faster from some 500 parameters on strip blocks (reduce + solve of
+#: 1200: 0.14 s against 0.62 s; 3600: 0.44 s against 3.2 s; benchmarks/README.md)
+AUTO_DENSE_LIMIT = DENSE_LIMIT
+#: ``solver="auto"`` above AUTO_DENSE_LIMIT: the sparse direct factorisation while its estimated
 #: size (16 bytes per nonzero of L + U) is at most this many bytes, conjugate gradients beyond
 DIRECT_MEMORY_LIMIT = _solvers.DIRECT_MEMORY_LIMIT
 #: the full (K, K) parameter cofactor (``parameter_cofactor()`` without columns) up to this
@@ -80,6 +107,11 @@ SERIAL_CHOLESKY_LIMIT = 400
 #: above DENSE_LIMIT, the Schur complement's triplets are built for runs of points of at most
 #: this many at a time (24 bytes each) and summed into the sparse reduced system
 SPARSE_CHUNK_TRIPLETS = 1 << 22
+#: above DENSE_LIMIT, with the kernels: N_pp and the Schur complement summed in place into
+#: the reduced system's CSR pattern (built once per system from the images each point links)
+#: instead of triplets (False: the triplets, SPARSE_CHUNK_TRIPLETS at a time; 10 times
+#: slower, scipy's conversions dominating)
+CSR_ASSEMBLY = True
 
 F64: TypeAlias = Float64Array
 Idx: TypeAlias = IndexArray
@@ -198,6 +230,82 @@ def _chunks(weights: IndexArray, budget: int) -> IndexArray:
     return out[:used]
 
 
+@dataclass(frozen=True)
+class _CsrPattern:
+    """The CSR pattern of the reduced system, by blocks of columns (images' parameters):
+    group ``a`` is linked to group ``b`` where a point is seen through both (or the prior
+    couples them), and the whole ``a x b`` block is then held. ``gptr``/``gnbr`` the group
+    graph (CSR, sorted), ``slot_offset`` where each neighbour's columns start in a row of
+    its row group, ``local_of`` each column's rank in its group, ``diag`` the positions of
+    the diagonal."""
+
+    indptr: IndexArray
+    indices: IndexArray
+    group_of: IndexArray
+    local_of: IndexArray
+    gptr: IndexArray
+    gnbr: IndexArray
+    slot_offset: IndexArray
+    diag: IndexArray
+
+    @property
+    def lookup(self) -> tuple[IndexArray, IndexArray, IndexArray, IndexArray, IndexArray,
+                              IndexArray]:
+        return (self.indptr, self.group_of, self.local_of, self.gptr, self.gnbr,
+                self.slot_offset)
+
+    def positions(self, rows: IndexArray, cols: IndexArray) -> IndexArray:
+        out = np.empty(rows.size, np.intp)
+        _nb_positions(np.ascontiguousarray(rows, dtype=np.intp),
+                      np.ascontiguousarray(cols, dtype=np.intp), *self.lookup, out)
+        return out
+
+    @classmethod
+    def build(cls, k: int, gidx: IndexArray, cols: IndexArray, order: IndexArray,
+              start: IndexArray, prior_rows: IndexArray, prior_cols: IndexArray
+              ) -> _CsrPattern:
+        groups = _solvers.block_groups(k, gidx)
+        n_groups = groups.shape[0]
+        ok = groups >= 0
+        group_of = np.zeros(k, np.intp)
+        group_of[groups[ok]] = np.nonzero(ok)[0]
+        local_of = np.zeros(k, np.intp)
+        local_of[groups[ok]] = (np.cumsum(ok, axis=1) - 1)[ok]
+        width = ok.sum(axis=1)
+        count = np.zeros(start.size - 1, np.intp)
+        _nb_point_groups(cols, order, start, group_of, n_groups, True, count,
+                         np.empty(0, np.intp))
+        keys = np.empty(int(np.sum(count * count)), np.intp)
+        _nb_point_groups(cols, order, start, group_of, n_groups, False, count, keys)
+        keys = np.unique(np.concatenate([
+            keys, np.arange(n_groups) * (n_groups + 1),
+            group_of[prior_rows] * n_groups + group_of[prior_cols]]))
+        ga, gb = keys // n_groups, keys % n_groups  # sorted by ga, then gb
+        gptr = np.concatenate([[0], np.cumsum(np.bincount(ga, minlength=n_groups))])
+        w = width[gb]
+        cs = np.cumsum(w) - w
+        slot_offset = cs - cs[gptr[ga]]
+        row_len_group = np.bincount(ga, weights=w, minlength=n_groups).astype(np.intp)
+        template = groups[gb][ok[gb]]  # each row group's neighbours' columns, in order
+        t_start = np.concatenate([[0], np.cumsum(row_len_group)[:-1]])
+        row_len = row_len_group[group_of]
+        indptr = np.concatenate([[0], np.cumsum(row_len)]).astype(np.intp)
+        idx = np.repeat(t_start[group_of] - indptr[:-1], row_len) + np.arange(indptr[-1])
+        indices = template[idx].astype(np.intp)
+        pattern = cls(indptr, indices, group_of, local_of, gptr.astype(np.intp),
+                      gb.astype(np.intp), slot_offset.astype(np.intp), np.empty(0, np.intp))
+        diag = pattern.positions(np.arange(k), np.arange(k))
+        return dataclasses.replace(pattern, diag=diag)
+
+    def matrix(self, data: F64, k: int) -> Any:
+        """The CSR matrix of ``data`` in this pattern (sorted indices, as SuperLU wants)."""
+        out = scipy.sparse.csr_matrix((data, self.indices, self.indptr), shape=(k, k))
+        if not out.has_sorted_indices:
+            out = out.copy()
+            out.sort_indices()
+        return out
+
+
 @dataclass
 class NormalSystem:
     """The normal equations of one linearisation, and their reduced solution.
@@ -236,7 +344,7 @@ class NormalSystem:
         Cholesky (only up to :data:`DENSE_LIMIT` parameters: ValueError above),
         ``"direct"`` sparse factorisation (SuperLU), ``"iterative"`` conjugate gradients
         preconditioned by the images' parameter blocks. ``"auto"``: dense up to
-        :data:`DENSE_LIMIT`, then direct while the factor's estimated size is at most
+        :data:`AUTO_DENSE_LIMIT`, then direct while the factor's estimated size is at most
         :data:`DIRECT_MEMORY_LIMIT` bytes, iterative beyond. After :meth:`solve`,
         :attr:`solver_used` names the method and :attr:`solver_report` (a
         :class:`SolverReport`) states it (``.statement``) and its outcome.
@@ -277,7 +385,9 @@ class NormalSystem:
             raise ValueError(f"NormalSystem: solver='dense' is limited to DENSE_LIMIT = "
                              f"{DENSE_LIMIT} parameters ({k} here): use 'auto', 'direct' or "
                              "'iterative'")
-        self._dense = self.solver == "dense" or (self.solver == "auto" and k <= DENSE_LIMIT)
+        self._dense = self.solver == "dense" or (
+            self.solver == "auto" and k <= min(AUTO_DENSE_LIMIT, DENSE_LIMIT))
+        self._pattern: _CsrPattern | None = None
         self._method: str | None = None
         self.factorization: Any = None
         self.solver_used: str | None = None
@@ -312,7 +422,9 @@ class NormalSystem:
                            self.n_pp, self.b_p, self.n_xx, self.b_x, self.n_px,
                            self._dense, diag)
             self.n_pp_diagonal = np.diag(self.n_pp).copy() if self._dense else diag
-            if not self._dense:
+            if not self._dense and CSR_ASSEMBLY:
+                self.n_pp = self._csr_npp(prior)
+            elif not self._dense:
                 self.n_pp = self._sparse_npp(prior)
             return
         at = np.swapaxes(self.a, 1, 2)
@@ -341,6 +453,19 @@ class NormalSystem:
         np.add.at(self.n_xx, self.point_of, n_xx_m)
         self.b_x = self.b_x_extra.copy()
         np.add.at(self.b_x, self.point_of, np.einsum("mki,mk->mi", self.b, self.v))
+
+    def _csr_npp(self, prior: Any) -> Any:
+        """``N_pp`` in the reduced system's CSR pattern (built here)."""
+        k = self.n_params
+        coo = scipy.sparse.coo_matrix(prior)
+        rows, cols = coo.row.astype(np.intp), coo.col.astype(np.intp)
+        pattern = _CsrPattern.build(k, self.gidx, self._cols, self._order, self._start,
+                                    rows, cols)
+        self._pattern = pattern
+        data = np.zeros(pattern.indices.size)
+        np.add.at(data, pattern.positions(rows, cols), coo.data)
+        _nb_npp_csr(self.a, self._cols, data, *pattern.lookup)
+        return pattern.matrix(data, k)
 
     def _sparse_npp(self, prior: Any) -> Any:
         """``N_pp`` (CSR): the prior plus each measurement's ``A^T A``, its triplets built
@@ -377,7 +502,7 @@ class NormalSystem:
             :class:`IterativeSolverError` (a LinAlgError) when conjugate gradients do not
             reach their tolerance within their iteration cap.
         """
-        n_pp = self.n_pp
+        n_pp: Any = self.n_pp
         n_xx = self.n_xx
         if damping:
             n_xx = n_xx + damping * np.einsum("jii->ji", n_xx)[:, :, None] * np.eye(3)
@@ -385,6 +510,9 @@ class NormalSystem:
                 n_pp = n_pp.copy()
                 diag = np.arange(n_pp.shape[0])
                 n_pp[diag, diag] += damping * n_pp[diag, diag]
+            elif self._numba and self._pattern is not None:
+                n_pp = n_pp.copy()
+                n_pp.data[self._pattern.diag] += damping * self.n_pp_diagonal
             else:
                 n_pp = (n_pp + scipy.sparse.diags(damping * self.n_pp_diagonal)).tocsr()
         self.c = _inv3(n_xx, numba=self._numba)  # (J, 3, 3)
@@ -469,7 +597,7 @@ class NormalSystem:
         sub = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(k, k)).tocsc()
         return scipy.sparse.csc_matrix(n_pp) - sub, rhs
 
-    def _reduce_numba(self, n_pp: F64) -> tuple[ReducedMatrix, F64]:
+    def _reduce_numba(self, n_pp: Any) -> tuple[ReducedMatrix, F64]:
         k = self.n_params
         rhs = np.array(self.b_p, dtype=np.float64)
         n_points = self._start.size - 1
@@ -480,6 +608,11 @@ class NormalSystem:
                        0, n_points, True, reduced, rhs, none, none, np.empty(0))
             reduced += reduced.T
             reduced *= 0.5
+            return reduced, rhs
+        if self._pattern is not None:  # in place into the CSR pattern
+            reduced = n_pp.copy()
+            _nb_reduce_csr(self.n_px, self.c, self.b_x, self._cols, self._order, self._start,
+                           reduced.data, rhs, *self._pattern.lookup)
             return reduced, rhs
         # sparse: the triplets of a run of points at a time (bounded memory), summed
         kc = self._cols.shape[1]
