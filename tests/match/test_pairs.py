@@ -125,6 +125,10 @@ def test_islands_and_images_without_pair_are_named_before_matching():
     assert "lone (overlaps no other image)" in report
     assert "off (no footprint on the DEM)" in report
     assert "2 components, 2 image(s) with no pair" in graph.summary()
+    # many islands: the first ones named, the others counted
+    short = graph.report(max_names=1)
+    assert "component 1: 4 images: r00c00, ... (3 more)" in short
+    assert "... 1 more components of 2-2 images" in short
 
 
 def test_hundreds_of_images_in_seconds_with_a_linear_number_of_candidates():

@@ -234,9 +234,9 @@ class PairGraph:
                 f"{len(self.unpaired())} image(s) with no pair")
 
     def report(self, *, pairs: bool = False, max_names: int = 10) -> str:
-        """The graph as lines of text: the summary, the thresholds, each component (its size
-        and first images), the images with no pair and why, and with ``pairs`` every
-        candidate (overlap, convergence, status)."""
+        """The graph as lines of text: the summary, the thresholds, the components (the first
+        ``max_names``, each with its size and first ``max_names`` images), the images with no
+        pair and why, and with ``pairs`` every candidate (overlap, convergence, status)."""
         def names(items: Sequence[str]) -> str:
             shown = ", ".join(items[:max_names])
             return shown + (f", ... ({len(items) - max_names} more)"
@@ -251,8 +251,13 @@ class PairGraph:
                  f"{'no cap' if cap is None else f'at most {cap} pairs per image'} "
                  "(a spanning forest first)"]
         degree = self.degree()
-        for k, comp in enumerate(self.components()):
+        comps = self.components()
+        for k, comp in enumerate(comps[:max_names]):
             lines.append(f"  component {k + 1}: {len(comp)} images: {names(list(comp))}")
+        if len(comps) > max_names:
+            sizes = [len(c) for c in comps[max_names:]]
+            lines.append(f"  ... {len(sizes)} more components of {min(sizes)}-{max(sizes)} "
+                         "images")
         unpaired = np.flatnonzero(degree == 0)
         if unpaired.size:
             involved = np.zeros(len(self.image_ids), bool)
