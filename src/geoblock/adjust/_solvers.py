@@ -201,7 +201,14 @@ class _Direct:
 
     def solve(self, rhs: Float64Array) -> Float64Array:
         d = self.d if rhs.ndim == 1 else self.d[:, None]
-        out = self.lu.solve(np.ascontiguousarray(rhs * d, dtype=np.float64)) * d
+        scaled = np.asarray(rhs * d, dtype=np.float64)
+        if scaled.ndim == 1:
+            out = self.lu.solve(scaled) * d
+        else:  # column by column: SuperLU's multi-column solve is 7 times slower (K=6000)
+            out = np.empty_like(scaled)
+            for c in range(scaled.shape[1]):  # columns, few (cofactor chunks)
+                out[:, c] = self.lu.solve(np.ascontiguousarray(scaled[:, c]))
+            out *= d
         if not np.all(np.isfinite(out)):
             raise np.linalg.LinAlgError("singular reduced system")
         return np.asarray(out)
