@@ -203,3 +203,16 @@ def test_footprints_as_tasks_give_the_same_graph():
     many = select_pairs(cams, DEM, scheduler="threads")
     for name in ("pairs", "overlap", "convergence_deg", "status"):
         np.testing.assert_array_equal(getattr(one, name), getattr(many, name))
+
+
+def test_a_block_across_the_antimeridian():
+    here = select_pairs(block(2, 3), DEM, min_overlap=0.0, max_pairs_per_image=None)
+    across = select_pairs(block(2, 3, lon0=179.985), DEM, min_overlap=0.0,
+                          max_pairs_per_image=None)
+    # the footprints' centres at 179.985 E and 179.995, 179.976 W
+    lon = np.array([m._origin[0] for m in block(2, 3, lon0=179.985).values()])
+    assert (lon > 179.98).any() and (lon < -179.97).any()
+    np.testing.assert_array_equal(here.pairs[here.overlap > 0],
+                                  across.pairs[across.overlap > 0])
+    np.testing.assert_allclose(here.overlap[here.overlap > 0],
+                               across.overlap[across.overlap > 0], atol=0.02)
