@@ -31,6 +31,15 @@ Covariances: :meth:`NormalSystem.parameter_cofactor` gives the dense ``Q_pp`` up
 and :meth:`NormalSystem.hat_blocks` take either (NaN for the points and measurements whose
 columns a selection does not hold).
 
+For callers (the block engine): give ``n_pp_prior`` as a scipy.sparse matrix (a dense one is
+itself (K, K)); read the damping's diagonal from ``n_pp_diagonal`` (or ``n_pp.diagonal()``,
+which works for both storages; ``np.diagonal(n_pp)`` does not); scale convergence tests with
+:meth:`NormalSystem.inverse_diagonal`; above :data:`DENSE_COFACTOR_LIMIT` parameters ask
+``parameter_cofactor(cofactor_columns(images=..., points=...))`` and expect NaN outside the
+selection; state ``solver_statement`` in the report; an :class:`IterativeSolverError` is a
+``LinAlgError`` but not a singular system (no point in diagnosing null directions); and
+``reduced.toarray()`` of a sparse ``reduced`` is (K, K): only below ``DENSE_LIMIT``.
+
 Everything is vectorised over measurements and points: no Python loop runs over either.
 Each measurement carries its parameter partials in the columns it touches, with their global
 indices (``cols`` (M, Kc), padded with -1 to the largest count ``Kc``; padded columns are zero
@@ -49,7 +58,6 @@ temporaries and its scatter; the Schur complement is accumulated from each point
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any, TypeAlias
 
@@ -70,11 +78,10 @@ from geoblock.adjust._kernels import (
     _nb_npp_csr,
     _nb_npp_triplets,
     _nb_point_cofactors,
-    _nb_point_groups,
-    _nb_positions,
     _nb_reduce,
     _nb_reduce_csr,
 )
+from geoblock.adjust._pattern import _CsrPattern
 from geoblock.adjust._solvers import IterativeSolverError, SolverReport
 from geoblock.typing import Float64Array, IndexArray
 
@@ -228,82 +235,6 @@ def _chunks(weights: IndexArray, budget: int) -> IndexArray:
     out = np.empty(weights.size + 1, np.intp)
     used = _nb_chunks(np.ascontiguousarray(weights, dtype=np.int64), int(budget), out)
     return out[:used]
-
-
-@dataclass(frozen=True)
-class _CsrPattern:
-    """The CSR pattern of the reduced system, by blocks of columns (images' parameters):
-    group ``a`` is linked to group ``b`` where a point is seen through both (or the prior
-    couples them), and the whole ``a x b`` block is then held. ``gptr``/``gnbr`` the group
-    graph (CSR, sorted), ``slot_offset`` where each neighbour's columns start in a row of
-    its row group, ``local_of`` each column's rank in its group, ``diag`` the positions of
-    the diagonal."""
-
-    indptr: IndexArray
-    indices: IndexArray
-    group_of: IndexArray
-    local_of: IndexArray
-    gptr: IndexArray
-    gnbr: IndexArray
-    slot_offset: IndexArray
-    diag: IndexArray
-
-    @property
-    def lookup(self) -> tuple[IndexArray, IndexArray, IndexArray, IndexArray, IndexArray,
-                              IndexArray]:
-        return (self.indptr, self.group_of, self.local_of, self.gptr, self.gnbr,
-                self.slot_offset)
-
-    def positions(self, rows: IndexArray, cols: IndexArray) -> IndexArray:
-        out = np.empty(rows.size, np.intp)
-        _nb_positions(np.ascontiguousarray(rows, dtype=np.intp),
-                      np.ascontiguousarray(cols, dtype=np.intp), *self.lookup, out)
-        return out
-
-    @classmethod
-    def build(cls, k: int, gidx: IndexArray, cols: IndexArray, order: IndexArray,
-              start: IndexArray, prior_rows: IndexArray, prior_cols: IndexArray
-              ) -> _CsrPattern:
-        groups = _solvers.block_groups(k, gidx)
-        n_groups = groups.shape[0]
-        ok = groups >= 0
-        group_of = np.zeros(k, np.intp)
-        group_of[groups[ok]] = np.nonzero(ok)[0]
-        local_of = np.zeros(k, np.intp)
-        local_of[groups[ok]] = (np.cumsum(ok, axis=1) - 1)[ok]
-        width = ok.sum(axis=1)
-        count = np.zeros(start.size - 1, np.intp)
-        _nb_point_groups(cols, order, start, group_of, n_groups, True, count,
-                         np.empty(0, np.intp))
-        keys = np.empty(int(np.sum(count * count)), np.intp)
-        _nb_point_groups(cols, order, start, group_of, n_groups, False, count, keys)
-        keys = np.unique(np.concatenate([
-            keys, np.arange(n_groups) * (n_groups + 1),
-            group_of[prior_rows] * n_groups + group_of[prior_cols]]))
-        ga, gb = keys // n_groups, keys % n_groups  # sorted by ga, then gb
-        gptr = np.concatenate([[0], np.cumsum(np.bincount(ga, minlength=n_groups))])
-        w = width[gb]
-        cs = np.cumsum(w) - w
-        slot_offset = cs - cs[gptr[ga]]
-        row_len_group = np.bincount(ga, weights=w, minlength=n_groups).astype(np.intp)
-        template = groups[gb][ok[gb]]  # each row group's neighbours' columns, in order
-        t_start = np.concatenate([[0], np.cumsum(row_len_group)[:-1]])
-        row_len = row_len_group[group_of]
-        indptr = np.concatenate([[0], np.cumsum(row_len)]).astype(np.intp)
-        idx = np.repeat(t_start[group_of] - indptr[:-1], row_len) + np.arange(indptr[-1])
-        indices = template[idx].astype(np.intp)
-        pattern = cls(indptr, indices, group_of, local_of, gptr.astype(np.intp),
-                      gb.astype(np.intp), slot_offset.astype(np.intp), np.empty(0, np.intp))
-        diag = pattern.positions(np.arange(k), np.arange(k))
-        return dataclasses.replace(pattern, diag=diag)
-
-    def matrix(self, data: F64, k: int) -> Any:
-        """The CSR matrix of ``data`` in this pattern (sorted indices, as SuperLU wants)."""
-        out = scipy.sparse.csr_matrix((data, self.indices, self.indptr), shape=(k, k))
-        if not out.has_sorted_indices:
-            out = out.copy()
-            out.sort_indices()
-        return out
 
 
 @dataclass
