@@ -560,7 +560,7 @@ def _draw(rng: np.random.Generator, count: int, min_images: int, lay: Layout,
             raise GeoblockError(f"large block {spec.name}: cannot place {count} points seen "
                                 f"by {min_images} images or more (the images barely overlap?)")
         want = count - total
-        n = int(min(max(1.3 * want / rate, 1000), 4_000_000))
+        n = int(min(max(1.3 * want / rate, 1000), 1_000_000))  # bounded memory per batch
         x = rng.uniform(-x_half, x_half, n)
         y = rng.uniform(-y_half, y_half, n)
         lon, lat = proj(x, y, inverse=True)

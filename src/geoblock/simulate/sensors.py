@@ -36,6 +36,7 @@ build in a fraction of a second. Everything is deterministic for a given ``seed`
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -448,12 +449,21 @@ def _build(spec: OrbitSensorSpec, nadir_lon: float, nadir_lat: float, roll: floa
             extra.look_error_tan[:, 0], c * spec.gsd_m / spec.altitude_m
             + extra.look_error_tan[:, 1])
     else:
-        look = LookDirections.from_tan_angles(np.zeros(cols), c * spec.gsd_m / spec.altitude_m)
+        look = _nominal_look(cols, spec.gsd_m, spec.altitude_m)
     return LinescanModel(
         (rows, cols), Ephemeris(t_eph, pos, vel),
         Attitude(t_att, matrix_to_quaternion(r_att), frame="orbital"), look,
         LineTimes((rows - 1) / 2.0, 0.0, period), epoch=spec.epoch,
     )
+
+
+@functools.lru_cache(maxsize=16)
+def _nominal_look(cols: int, gsd_m: float, altitude_m: float) -> LookDirections:
+    """The error-free look directions of ``cols`` detectors: one frozen object shared by every
+    model of the same detector (10^4 on-board models of a large block hold one table, not
+    10^4 copies of 3000 x 3 vectors)."""
+    c = np.arange(cols) - (cols - 1) / 2.0
+    return LookDirections.from_tan_angles(np.zeros(cols), c * gsd_m / altitude_m)
 
 
 def incidence_angle(model: LinescanModel, row: float, col: float, h: float = 0.0) -> float:
