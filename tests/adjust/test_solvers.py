@@ -368,3 +368,45 @@ def test_csr_assembly_equals_triplets_and_dense(monkeypatch, damping):
     structural = np.zeros(system.reduced.shape, bool)
     structural[system.reduced.nonzero()] = True
     assert np.all(structural[np.abs(ref.reduced) > 0])
+
+
+def test_cached_pattern_rebuilt_when_columns_leave_it():
+    """The CSR pattern kept in ``pairs.cache`` for the next linearisation is rebuilt when a
+    measurement's columns fall outside it, in N_pp (a measurement spanning two images) or
+    only in the Schur complement (a point newly linking two images)."""
+    rng = np.random.default_rng(11)
+    gidx = np.arange(18, dtype=np.intp).reshape(3, 6)
+    # points 0-5 seen by images 0 and 1, points 6-11 by 1 and 2 (no point links 0 and 2)
+    image_of = np.array([0, 1] * 6 + [1, 2] * 6, np.intp)
+    point_of = np.repeat(np.arange(12), 2)
+    m = image_of.size
+    p = dict(n_params=18, gidx=gidx, image_of=image_of, point_of=point_of,
+             a=rng.normal(size=(m, 2, 6)), b=rng.normal(size=(m, 2, 3)),
+             v=rng.normal(size=(m, 2)), n_pp_prior=0.1 * np.eye(18),
+             b_p_prior=rng.normal(size=18), n_xx_extra=0.1 * np.tile(np.eye(3), (12, 1, 1)),
+             b_x_extra=np.zeros((12, 3)), pairs=measurement_pairs(point_of, 12),
+             solver="direct")
+    first = NormalSystem(**p)
+    first.solve(0.0)
+    assert len(p["pairs"].cache) == 1
+    links = first.reduced.toarray()[np.ix_(gidx[0], gidx[2])]
+    assert not np.any(links)
+    # point 0's second measurement now in image 2: a 0-2 link the cached pattern lacks
+    cols = gidx[image_of].copy()
+    cols[1] = gidx[2]
+    for extra in (False, True):
+        q = {**p, "cols": cols}
+        if extra:  # and a measurement spanning images 0 and 2 (seen in N_pp already)
+            c2 = np.concatenate([cols, np.full((m, 1), -1, np.intp)], axis=1)
+            c2[0, 6] = gidx[2, 0]
+            a2 = np.concatenate([p["a"], np.zeros((m, 2, 1))], axis=2)
+            a2[0, :, 6] = [0.3, -0.2]
+            q = {**q, "cols": c2, "a": a2}
+        p["pairs"].cache.clear()
+        NormalSystem(**p).solve(0.0)  # the cache holds the 0-1, 1-2 pattern again
+        got = NormalSystem(**q).solve(0.1)
+        fresh = NormalSystem(**{**q, "pairs": measurement_pairs(point_of, 12)}).solve(0.1)
+        dense = NormalSystem(**{**q, "solver": "dense"}).solve(0.1)
+        for x, y, z in zip(got, fresh, dense, strict=True):
+            assert np.array_equal(x, y)
+            assert np.abs(x - z).max() <= 1e-10 * np.abs(z).max()

@@ -455,15 +455,19 @@ def _nb_csr_position(  # pragma: no cover - numba
 
 @njit(cache=True)
 def _nb_slot(a: int, b: int, gptr: Idx, gnbr: Idx, slot_offset: Idx) -> int:  # pragma: no cover
-    """Where group ``b``'s columns start in the rows of group ``a`` (which must hold it)."""
+    """Where group ``b``'s columns start in the rows of group ``a``; -1 if the pattern does
+    not link them."""
     lo = gptr[a]
-    hi = gptr[a + 1]
+    end = gptr[a + 1]
+    hi = end
     while lo < hi:
         mid = (lo + hi) // 2
         if gnbr[mid] < b:
             lo = mid + 1
         else:
             hi = mid
+    if lo == end or gnbr[lo] != b:
+        return -1
     return slot_offset[lo]
 
 
@@ -482,8 +486,9 @@ def _nb_positions(  # pragma: no cover - numba
 def _nb_npp_csr(  # pragma: no cover - numba
     a: F64, cols: Idx, data: F64, indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx,
     gnbr: Idx, slot_offset: Idx,
-) -> None:
-    """Each measurement's ``A^T A`` added into the CSR ``data`` of ``N_pp``."""
+) -> bool:
+    """Each measurement's ``A^T A`` added into the CSR ``data`` of ``N_pp``; False (data
+    partly updated) as soon as an entry falls outside the pattern."""
     kmax = a.shape[2]
     n_groups = gptr.size - 1
     for m in range(a.shape[0]):
@@ -500,17 +505,21 @@ def _nb_npp_csr(  # pragma: no cover - numba
                 grp_c = group_of[g[c]]
                 if grp_r * n_groups + grp_c != last:
                     off = _nb_slot(grp_r, grp_c, gptr, gnbr, slot_offset)
+                    if off < 0:
+                        return False
                     last = grp_r * n_groups + grp_c
                 data[indptr[g[r]] + off + local_of[g[c]]] += (a[m, 0, r] * a[m, 0, c]
                                                               + a[m, 1, r] * a[m, 1, c])
+    return True
 
 
 @njit(cache=True)
 def _nb_reduce_csr(  # pragma: no cover - numba
     n_px: F64, cinv: F64, b_x: F64, cols: Idx, order: Idx, start: Idx, data: F64, rhs: F64,
     indptr: Idx, group_of: Idx, local_of: Idx, gptr: Idx, gnbr: Idx, slot_offset: Idx,
-) -> None:
-    """:func:`_nb_reduce` over every point, subtracted in place from the CSR ``data``."""
+) -> bool:
+    """:func:`_nb_reduce` over every point, subtracted in place from the CSR ``data``; False
+    (data and rhs partly updated) as soon as an entry falls outside the pattern."""
     kmax = n_px.shape[1]
     n_groups = gptr.size - 1
     most = 0
@@ -554,9 +563,12 @@ def _nb_reduce_csr(  # pragma: no cover - numba
                         if key != last_ab:
                             off_ab = _nb_slot(grp_a, grp_b, gptr, gnbr, slot_offset)
                             off_ba = _nb_slot(grp_b, grp_a, gptr, gnbr, slot_offset)
+                            if off_ab < 0 or off_ba < 0:
+                                return False
                             last_ab = key
                         val = (left[qa, r, 0] * n_px[mb, c, 0] + left[qa, r, 1] * n_px[mb, c, 1]
                                + left[qa, r, 2] * n_px[mb, c, 2])
                         data[indptr[ga[r]] + off_ab + local_of[gb[c]]] -= val
                         if qb != qa:
                             data[indptr[gb[c]] + off_ba + local_of[ga[r]]] -= val
+    return True

@@ -58,7 +58,7 @@ temporaries and its scatter; the Schur complement is accumulated from each point
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, TypeAlias
 
 import numpy as np
@@ -134,6 +134,10 @@ class Pairs:
     ``point`` (P,) is their point; ``a``, ``b`` (P,) index the measurements. ``order`` (M,)
     lists the measurements by point (stable) and ``start`` (J + 1,) where each point's run
     begins in it (optional: derived from ``point_of`` when missing).
+
+    ``cache`` keeps the reduced system's sparse pattern for the next :class:`NormalSystem`
+    built with these pairs (the next linearisation of the same block): it is checked as it
+    is used, and rebuilt when a measurement's columns leave it.
     """
 
     a: np.ndarray
@@ -141,6 +145,7 @@ class Pairs:
     point: np.ndarray
     order: np.ndarray | None = None
     start: np.ndarray | None = None
+    cache: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
 
 
 def measurement_pairs(point_of: np.ndarray, n_points: int) -> Pairs:
@@ -385,17 +390,28 @@ class NormalSystem:
         self.b_x = self.b_x_extra.copy()
         np.add.at(self.b_x, self.point_of, np.einsum("mki,mk->mi", self.b, self.v))
 
-    def _csr_npp(self, prior: Any) -> Any:
-        """``N_pp`` in the reduced system's CSR pattern (built here)."""
+    def _csr_npp(self, prior: Any, fresh: bool = False) -> Any:
+        """``N_pp`` in the reduced system's CSR pattern: the previous linearisation's (kept
+        in ``pairs.cache``) while every entry falls in it, else (or ``fresh``) built here."""
         k = self.n_params
+        self._prior = prior
         coo = scipy.sparse.coo_matrix(prior)
         rows, cols = coo.row.astype(np.intp), coo.col.astype(np.intp)
-        pattern = _CsrPattern.build(k, self.gidx, self._cols, self._order, self._start,
-                                    rows, cols)
+        key = ("csr", k, self.gidx.shape, hash(np.ascontiguousarray(self.gidx).tobytes()))
+        pattern = None if fresh else self.pairs.cache.get(key)
+        for _ in range(2):
+            if pattern is None:
+                pattern = _CsrPattern.build(k, self.gidx, self._cols, self._order,
+                                            self._start, rows, cols)
+            data = np.zeros(pattern.indices.size)
+            pos = pattern.positions(rows, cols)
+            if np.all(pos >= 0) and _nb_npp_csr(self.a, self._cols, data, *pattern.lookup):
+                break
+            pattern = None  # a column or a prior entry outside the cached pattern
+        assert pattern is not None
+        np.add.at(data, pos, coo.data)
+        self.pairs.cache[key] = pattern
         self._pattern = pattern
-        data = np.zeros(pattern.indices.size)
-        np.add.at(data, pattern.positions(rows, cols), coo.data)
-        _nb_npp_csr(self.a, self._cols, data, *pattern.lookup)
         return pattern.matrix(data, k)
 
     def _sparse_npp(self, prior: Any) -> Any:
@@ -447,7 +463,11 @@ class NormalSystem:
             else:
                 n_pp = (n_pp + scipy.sparse.diags(damping * self.n_pp_diagonal)).tocsr()
         self.c = _inv3(n_xx, numba=self._numba)  # (J, 3, 3)
-        reduced, rhs = self._reduce(n_pp)
+        try:
+            reduced, rhs = self._reduce(n_pp)
+        except _PatternMiss:  # the previous linearisation's pattern: build this one's
+            self.n_pp = self._csr_npp(self._prior, fresh=True)
+            return self.solve(damping)
         del n_pp
         self.reduced = reduced
         dp = self._solve_reduced(reduced, rhs)
@@ -542,8 +562,10 @@ class NormalSystem:
             return reduced, rhs
         if self._pattern is not None:  # in place into the CSR pattern
             reduced = n_pp.copy()
-            _nb_reduce_csr(self.n_px, self.c, self.b_x, self._cols, self._order, self._start,
-                           reduced.data, rhs, *self._pattern.lookup)
+            ok = _nb_reduce_csr(self.n_px, self.c, self.b_x, self._cols, self._order,
+                                self._start, reduced.data, rhs, *self._pattern.lookup)
+            if not ok:  # a pair of images the cached pattern does not link
+                raise _PatternMiss
             return reduced, rhs
         # sparse: the triplets of a run of points at a time (bounded memory), summed
         kc = self._cols.shape[1]
@@ -727,6 +749,10 @@ def _gather(q: np.ndarray, pos: np.ndarray, ga: np.ndarray, gb: np.ndarray) -> n
     block = np.where((ia < 0)[:, :, None] | (ib < 0)[:, None, :], np.nan, block)
     mask = (ga >= 0)[:, :, None] & (gb >= 0)[:, None, :]
     return np.where(mask, block, 0.0)
+
+
+class _PatternMiss(Exception):
+    """A point links two images the cached CSR pattern does not (rebuild it)."""
 
 
 class SingularPoints(np.linalg.LinAlgError):
