@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse
 import scipy.stats
 
 from geoblock import coords
@@ -19,6 +20,7 @@ from geoblock.adjust._control import (
     source_shifts,
 )
 from geoblock.adjust.normal import (
+    DENSE_LIMIT,
     NormalSystem,
     SingularPoints,
     compress_columns,
@@ -73,7 +75,7 @@ class _Setup:
     gidx: IndexArray  # (images, max adjustable): position of each in the parameter vector
     n_params: int
     prior_x: Float64Array  # (K,) a-priori values of the adjustable parameters
-    prior_w: Float64Array  # (K, K) prior weight
+    prior_w: Any  # (K, K) prior weight, scipy.sparse CSR (block diagonal)
     # measurements in the solution
     m_sel: IndexArray  # indices into block.measurements
     image_of: IndexArray
@@ -189,8 +191,9 @@ class _Engine:
 
     def __init__(self, block: Block, ids: tuple[str, ...], *, use_tps: bool,
                  dem_control: str, tp_sigma_factor: float, tp_sigma_m: float | None,
-                 tp_prior: str, notes: list[str]) -> None:
+                 tp_prior: str, notes: list[str], solver: str = "auto") -> None:
         self.block = block
+        self.solver = solver
         self.tp_prior = tp_prior
         self.tp_sigma_m_first = FLOATING_TP_SIGMA_M
         self.dem_control = dem_control if block.dem is not None else "none"
@@ -208,10 +211,12 @@ class _Engine:
         for i, (o, s) in enumerate(zip(offsets, sizes, strict=True)):
             gidx[i, :s] = o + np.arange(s)
         k = int(sizes.sum())
-        prior_w = np.zeros((k, k))
-        for i in range(len(models)):
-            sl = slice(offsets[i], offsets[i] + sizes[i])
-            prior_w[sl, sl] = prior_weight(priors[i][1][np.ix_(adj[i], adj[i])])
+        # block diagonal, one block per image: sparse (a dense (K, K) array would be 28.8 GB
+        # at 10^4 images of 6 parameters)
+        prior_w = scipy.sparse.block_diag(
+            [prior_weight(priors[i][1][np.ix_(adj[i], adj[i])]) for i in range(len(models))
+             if sizes[i]] or [np.zeros((0, 0))], format="csr", dtype=np.float64)
+        prior_w = scipy.sparse.csr_matrix(prior_w, shape=(k, k))
         prior_x = _params_vector(models, adj, gidx, k)
 
         kinds = ("gcp", "tp", "hcp") if use_tps else ("gcp",)
@@ -269,10 +274,10 @@ class _Engine:
         self.shifts = source_shifts(ground, p_id, p_kind, lon0, lat0, h0, frame, k)
         if self.shifts is not None:
             k_all = k + self.shifts.count
-            w_all = np.zeros((k_all, k_all))
-            w_all[:k, :k] = prior_w
             sig_shift = self.shifts.prior_sigma[self.shifts.index >= 0]
-            w_all[k:, k:] = np.diag(1.0 / np.maximum(sig_shift, MIN_GROUND_SIGMA_M) ** 2)
+            w_all = scipy.sparse.block_diag(
+                [prior_w, scipy.sparse.diags(1.0 / np.maximum(sig_shift, MIN_GROUND_SIGMA_M)
+                                             ** 2)], format="csr")
             prior_w, prior_x = w_all, np.concatenate([prior_x, np.zeros(k_all - k)])
         self.s = _Setup(
             ids=ids, models=models, adj=adj, gidx=gidx, n_params=k, prior_x=prior_x,
@@ -413,7 +418,7 @@ class _Engine:
         if s.hcp_h is not None:
             self._hcp_rows(dem, lon, lat, h, offset)
         ev = _Evaluation(models=models, v=v, vw=vw, status=status, ok=ok, lon=lon, lat=lat, h=h,
-                         dem=dem, pts=pts, cost_fixed=float(dp @ s.prior_w @ dp)
+                         dem=dem, pts=pts, cost_fixed=float(dp @ (s.prior_w @ dp))
                          + float(np.nansum((dem.misclosure / dem.sigma) ** 2)), offset=offset)
         self.recost(ev)
         return ev
@@ -536,8 +541,9 @@ class _Engine:
                    + (dw * np.where(has, dem.misclosure, 0.0))[:, None] * dem.grad)
         return NormalSystem(
             n_params=s.n_params, gidx=s.gidx, image_of=image_of, point_of=point_of,
-            a=a, b=b, v=vw, n_pp_prior=s.prior_w, b_p_prior=s.prior_w @ (s.prior_x - x),
+            a=a, b=b, v=vw, n_pp_prior=s.prior_w, b_p_prior=np.asarray(s.prior_w @ (s.prior_x - x)),
             n_xx_extra=n_extra, b_x_extra=b_extra, pairs=self.pairs, cols=cols_all,
+            solver=self.solver,
         )
 
     def _with_pseudo(self, ev: _Evaluation, a: Float64Array, b: Float64Array,
@@ -576,6 +582,11 @@ class _Engine:
         if reduced is None:
             return SingularSystemError(f"block: singular normal equations ({exc})", ())
         if hasattr(reduced, "toarray"):
+            if reduced.shape[0] > DENSE_LIMIT:  # no (K, K) dense array for the diagnosis
+                return SingularSystemError(
+                    f"block: singular normal equations ({exc}); with {reduced.shape[0]} "
+                    "parameters the undetermined ones are not searched for: adjust a part of "
+                    "the block, or give the parameters a-priori sigmas", ())
             reduced = reduced.toarray()
         labels = [""] * s.n_params
         if self.shifts is not None:
@@ -648,7 +659,7 @@ class _Engine:
             # end, on knots every 40 lines in tests/adjust/test_jitter_block.py's block)
             decrement = float(dp @ system.b_p + np.sum(dx * system.b_x))
             if lam:
-                decrement -= lam * float(np.diagonal(system.n_pp) @ dp ** 2 + np.sum(
+                decrement -= lam * float(system.n_pp_diagonal @ dp ** 2 + np.sum(
                     np.einsum("jii->ji", system.n_xx) * dx ** 2))
             x, pts, ev = x_new, pts_new, ev_new
             if self.tp_prior == "floating":
@@ -717,7 +728,7 @@ class _Engine:
     def _n_obs(self, ev: _Evaluation) -> int:
         s = self.s
         img = 2 * int(np.sum(ev.ok & (self.weight > 0)))
-        prior = int(np.sum(np.diag(s.prior_w) > 0))
+        prior = int(np.sum(s.prior_w.diagonal() > 0))
         dem = int(np.sum(np.isfinite(ev.dem.misclosure)))
         ground = s.p_id.size if self.tp_prior == "fixed" else int(np.sum(s.p_kind == "gcp"))
         return img + prior + 3 * ground + dem

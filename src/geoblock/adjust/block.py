@@ -66,6 +66,8 @@ from geoblock.adjust._engine import (
     _Solution,
     _Statistics,
 )
+from geoblock.adjust._islands import check_block
+from geoblock.adjust.normal import SOLVERS
 from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust.problem import (
     CONTROL_SHIFTS,
@@ -115,6 +117,8 @@ def adjust(
     max_iterations: int = 30,
     tolerance: float = 1e-4,
     control_shifts: str = "consider",
+    components: str = "refuse",
+    solver: str = "auto",
     progress: Callable[[str], None] | None = None,
 ) -> BlockResult:
     """Adjust a block (module docstring).
@@ -175,6 +179,22 @@ def adjust(
         :mod:`geoblock.adjust._consider`); the estimate cannot drift where nothing else
         sees absolute position. ``"estimate"``: three unknowns per source with that prior,
         for blocks where surveyed GCPs or other sources make them observable.
+    components : {"refuse", "separate", "joint"}
+        A block whose images form several groups that no GCP or tie point links
+        (:mod:`geoblock.adjust._islands`, checked from the measurements alone before any
+        projection): ``"refuse"`` (default) raises an AdjustmentError naming each group;
+        ``"separate"`` adjusts each group alone (its own sigma0, iterations and statistics)
+        and merges them into one result (``covariance`` block diagonal over the groups;
+        ``sigma0`` pooled from the groups' costs and degrees of freedom); ``"joint"``
+        solves them in one system as they are. A group that nothing anchors (no GCP, no
+        DEM control, no a-priori sigmas on its parameters) is singular and refused as any
+        such block is.
+    solver : {"auto", "dense", "direct", "iterative"}
+        How the reduced normal equations are solved (:class:`~geoblock.adjust.normal.
+        NormalSystem`): dense Cholesky (up to :data:`~geoblock.adjust.normal.DENSE_LIMIT`
+        parameters), a sparse direct factorisation, or conjugate gradients preconditioned
+        by the images' blocks; ``"auto"`` chooses by size and memory.
+        :attr:`BlockResult.solver` states what solved the final system.
     progress : callable, optional
         Called with one line per iteration.
 
@@ -189,7 +209,8 @@ def adjust(
         observations than free parameters, parameters or points the observations cannot
         determine (the message names the images, points and parameters).
     AdjustmentError
-        A measured point the models cannot project, or no step reducing the cost.
+        Several disconnected groups of images (``components="refuse"``), a measured point
+        the models cannot project, or no step reducing the cost.
     """
     if mode not in MODES:
         raise AdjustmentError(f"adjust: mode must be one of {MODES}, got {mode!r}")
@@ -208,11 +229,15 @@ def adjust(
         raise AdjustmentError(f"adjust: alpha must be in (0, 1), got {alpha!r}")
     if tp_sigma_m is not None and not (math.isfinite(tp_sigma_m) and tp_sigma_m > 0):
         raise AdjustmentError(f"adjust: tp_sigma_m must be > 0, got {tp_sigma_m!r}")
+    if solver not in SOLVERS:
+        raise AdjustmentError(f"adjust: solver must be one of {SOLVERS}, got {solver!r}")
     if control_shifts not in CONTROL_SHIFTS:
         raise AdjustmentError(f"adjust: control_shifts must be one of {CONTROL_SHIFTS}, got "
                               f"{control_shifts!r}")
+    groups = (check_block(block, components) if mode == "block"
+              else [(i,) for i in block.image_ids])
     if control_shifts == "consider" and has_source_shifts(block):
-        options: dict[str, Any] = {
+        options: dict[str, Any] = {"components": components, "solver": solver,
             "mode": mode, "dem_control": dem_control, "tp_sigma_factor": tp_sigma_factor,
                    "tp_sigma_m": tp_sigma_m, "tp_prior": tp_prior, "robust": robust,
                    "robust_k": robust_k, "alpha": alpha, "collocation": collocation,
@@ -232,13 +257,14 @@ def adjust(
     say = progress or (lambda message: None)
     notes: list[str] = []
     start = time.perf_counter()
-    ids = block.image_ids
     if mode == "block":
-        groups = [ids]
+        if len(groups) > 1:
+            notes.append(f"{len(groups)} disconnected groups of images adjusted separately "
+                         f"(components=\"separate\"): {', '.join(str(len(g)) for g in groups)}"
+                         " images; no tie holds one group to another")
         if block.dem is None and dem_control != "none":
             notes.append("no DEM: the TP heights are not controlled")
     else:
-        groups = [(i,) for i in ids]
         if np.any(block.measurements.kind == "hcp"):
             notes.append("single mode: height control points (tie points with a height) are "
                          "not used")
@@ -247,8 +273,9 @@ def adjust(
         engine = _Engine(block, group, use_tps=mode == "block",
                          dem_control=dem_control if mode == "block" else "none",
                          tp_sigma_factor=tp_sigma_factor, tp_sigma_m=tp_sigma_m,
-                         tp_prior=tp_prior, notes=notes)
-        label = "block" if mode == "block" else f"single {group[0]}"
+                         tp_prior=tp_prior, notes=notes, solver=solver)
+        label = ("block" if len(groups) == 1 else f"group {len(solutions) + 1}"
+                 ) if mode == "block" else f"single {group[0]}"
         out = engine.run(max_iterations=max_iterations, tolerance=tolerance, robust=robust,
                          robust_k=robust_k, alpha=alpha, label=label, progress=say)
         solutions.append((engine, out, engine.statistics(out.ev, out.system)))
@@ -266,7 +293,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
     n_meas = len(meas)
     models: dict[str, SensorModel] = {}
     parameters: dict[str, ParameterEstimates] = {}
-    cov_blocks: list[Float64Array] = []
+    solution_cov: list[Float64Array] = []
     index: list[tuple[str, str]] = []
     v = np.full((n_meas, 2), np.nan)
     weight = np.full(n_meas, np.nan)
@@ -308,7 +335,6 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
                 values=np.array(model.parameters.values[s.adj[i]]),
                 prior_sigmas=np.sqrt(np.diag(engine.priors[i][1])[s.adj[i]]),
                 sigmas=np.sqrt(np.diag(q)))
-            cov_blocks.append(q)
             index.extend((image, n) for n in names)
         v[s.m_sel] = ev.v
         weight[s.m_sel] = np.where(ev.ok, engine.weight, 0.0)
@@ -337,30 +363,36 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
                 cov3 = np.zeros((3, 3))
                 values[have] = out.x[idx[have]]
                 cov3[np.ix_(have, have)] = q_shift[np.ix_(idx[have] - k0, idx[have] - k0)]
-                key = source if mode == "block" else f"{source} @ {s.ids[0]}"
+                where = ("block" if len(solutions) == 1 else f"group {len(solution_cov) + 1}"
+                         ) if mode == "block" else s.ids[0]
+                key = source if where == "block" else f"{source} @ {where}"
                 shifts[key] = SourceShift(
-                    source=source, solution="block" if mode == "block" else s.ids[0],
+                    source=source, solution=where,
                     values=values, sigmas=np.sqrt(np.diag(cov3)),
                     prior_sigmas=sh.prior_sigma[i_src].copy(), covariance=cov3,
                     lon=float(sh.centroid[i_src, 0]), lat=float(sh.centroid[i_src, 1]),
                     h=float(sh.centroid[i_src, 2]), n_points=int(sh.n_points[i_src]))
+        k_models = s.n_model_params  # the source shifts come after
+        solution_cov.append(st.q_pp[:k_models, :k_models] * var0)
         if s.hcp_h is not None:
             j = np.flatnonzero(np.isfinite(s.hcp_h))
             hcp_parts.append((s.p_id[j], s.hcp_h[j], ev.h[j], s.hcp_sigma[j]
                               if s.hcp_sigma is not None else np.full(j.size, np.nan),
                               np.sqrt(cov_enu[j, 2, 2])))
-    if mode == "block":  # one solution: the full covariance, cross-image terms included
-        var0 = cost / dof if dof > 0 else 1.0
-        k_models = solutions[0][0].s.n_model_params  # the source shifts come after
-        covariance = solutions[0][2].q_pp[:k_models, :k_models] * var0
-    else:  # independent images: block diagonal
-        k = sum(b.shape[0] for b in cov_blocks)
+    if len(solution_cov) == 1:  # one solution: the full covariance, cross-image terms
+        covariance = solution_cov[0]
+    else:  # independent solutions (images, or groups): block diagonal
+        k = sum(b.shape[0] for b in solution_cov)
         covariance = np.zeros((k, k))
         o = 0
-        for b in cov_blocks:
+        for b in solution_cov:
             covariance[o:o + b.shape[0], o:o + b.shape[0]] = b
             o += b.shape[0]
     sigma0 = math.sqrt(cost / dof) if dof > 0 else float("nan")
+    statements = list(dict.fromkeys(out.system.solver_statement for _, out, _ in solutions
+                                    if out.system.solver_statement))
+    solver = ("; ".join(statements) if len(statements) <= 3 else
+              "; ".join(statements[:3]) + f"; and {len(statements) - 3} other statement(s)")
 
     # blunder flags
     flagged = np.isfinite(test) & (test > threshold)
@@ -454,7 +486,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         ictp=ictp, sigma0=sigma0, dof=dof, converged=bool(converged), iterations=iterations,
         history=history, mode=mode, dem_control=dem_control if mode == "block" else "none",
         robust=robust, notes=notes, predicted_covariance=pred_cov, check_source=check_source,
-        shifts=shifts, hcp=hcp, vertical=vertical, grid_covariance=grid)
+        shifts=shifts, hcp=hcp, vertical=vertical, grid_covariance=grid, solver=solver)
 
 
 def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) -> PointErrors:

@@ -268,6 +268,10 @@ class BlockResult:
         a 9 x 9 grid of image points on the DEM: the adjusted parameters' posterior and the
         DEM's sigma propagated to the ground (no image-measurement term): the accuracy
         statement without check points.
+    solver : str
+        How the reduced normal equations of the final linearisation were solved (dense
+        Cholesky, sparse direct, conjugate gradients: the solver's own statement; one per
+        solution when they differ), as ``adjust(..., solver=)`` chose.
     """
 
     models: dict[str, SensorModel]
@@ -294,6 +298,7 @@ class BlockResult:
     hcp: HeightControlResults | None = None
     vertical: VerticalCheck | None = None
     grid_covariance: dict[str, Float64Array] = field(default_factory=dict)
+    solver: str = ""
 
     def parameter_covariance(self, image: str) -> tuple[tuple[str, ...], Float64Array]:
         """The posterior covariance of one image's adjusted parameters.
@@ -417,5 +422,7 @@ class BlockResult:
         flagged = int(self.measurements.flagged.sum())
         if flagged:
             lines.append(f"{flagged} measurement(s) flagged as blunders")
+        if self.solver:
+            lines.append(f"solver: {self.solver}")
         lines.extend(f"note: {n}" for n in self.notes)
         return "\n".join(lines)

@@ -60,7 +60,7 @@ def result_dict(result: BlockResult, single: BlockResult | None = None) -> dict[
     out: dict[str, Any] = {
         "mode": result.mode, "dem_control": result.dem_control, "robust": result.robust,
         "converged": result.converged, "iterations": result.iterations,
-        "sigma0": _f(result.sigma0), "dof": result.dof,
+        "sigma0": _f(result.sigma0), "dof": result.dof, "solver": result.solver,
         "history": [{k: (_f(v) if isinstance(v, float) else v) for k, v in h.items()}
                     for h in result.history],
         "notes": list(result.notes),
@@ -370,6 +370,8 @@ def report_markdown(result: BlockResult, single: BlockResult | None = None, *,
              f"Mode **{r.mode}**, DEM control **{r.dem_control}**, robust **{r.robust}**: "
              f"{'converged' if r.converged else '**NOT converged**'} in {r.iterations} "
              f"iterations; sigma0 = {r.sigma0:.4g} with {r.dof} degrees of freedom.", ""]
+    if r.solver:
+        lines += [f"Normal equations: {r.solver}.", ""]
     for note in r.notes:
         lines.append(f"- {note}")
     if r.notes:
