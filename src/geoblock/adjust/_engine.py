@@ -94,6 +94,13 @@ class _Setup:
     n_model_params: int = -1  # K of the models (n_params less the source shifts)
     hcp_h: Float64Array | None = None  # (J,) observed height of the HCPs, NaN elsewhere
     hcp_sigma: Float64Array | None = None  # (J,) their sigma_h, metres
+    by_image: IndexArray | None = None  # (M,) the measurements grouped by image (stable)
+    image_start: IndexArray | None = None  # (I + 1,) where each image's run begins in it
+
+    def of_image(self, i: int) -> IndexArray:
+        """The measurements of image ``i`` (ascending): O(1), no scan of ``image_of``."""
+        assert self.by_image is not None and self.image_start is not None
+        return self.by_image[self.image_start[i]: self.image_start[i + 1]]
 
 
 @dataclass
@@ -224,6 +231,11 @@ class _Engine:
         # points in the solution
         p_id, point_of = np.unique(meas.id[sel], return_inverse=True)
         image_of = lookup(np.array(ids), meas.image[sel])
+        # grouped by image once (CSR): the per-image slices of the hot path cost O(1)
+        by_image = np.argsort(image_of, kind="stable").astype(np.intp)
+        image_start = np.searchsorted(image_of[by_image], np.arange(len(ids) + 1)).astype(
+            np.intp)
+        self._by_image, self._image_start, self._image_of = by_image, image_start, image_of
         n_images = np.bincount(point_of, minlength=p_id.size)
         p_kind = np.empty(p_id.size, dtype="<U4")
         p_kind[point_of] = meas.kind[sel]
@@ -286,7 +298,7 @@ class _Engine:
             sigma=np.stack([meas.sigma_row[sel], meas.sigma_col[sel]], -1),
             p_id=p_id, p_kind=p_kind, frame=frame, x0=x0, g_center=x0.copy(),
             g_weight=g_weight, dem_rows=dem_rows, n_images=n_images, n_model_params=k,
-            hcp_h=hcp_h, hcp_sigma=hcp_sigma,
+            hcp_h=hcp_h, hcp_sigma=hcp_sigma, by_image=by_image, image_start=image_start,
         )
         if self.shifts is not None:
             self.s.n_params = prior_x.size
@@ -327,7 +339,7 @@ class _Engine:
                     f"block: image {image!r} has {counts[i]} measurement(s) ({n_obs} "
                     f"observations) for {int(free.sum())} free parameter(s) "
                     f"({', '.join(names)}); add GCPs or TPs or give them a-priori sigmas")
-            mine = sel[lookup(np.array(ids), meas.image[sel]) == i]
+            mine = sel[self._by_image[self._image_start[i]: self._image_start[i + 1]]]
             check_measured_geometry(
                 meas.id[mine], meas.row[mine], meas.col[mine],
                 [f"{image}:{models[i].parameters.names[a]}" for a in adj[i][free]],
@@ -346,11 +358,15 @@ class _Engine:
         want = np.isin(point_of, tp_points)
         m_idx = sel[want]
         xyz = np.full((m_idx.size, 3), np.nan)
+        img = self._image_of[want]
+        order = np.argsort(img, kind="stable")
+        start = np.searchsorted(img[order], np.arange(len(ids) + 1))
+        row_w, col_w = meas.row[m_idx], meas.col[m_idx]
         for i, image in enumerate(ids):
-            mine = meas.image[m_idx] == image
-            if not mine.any():
+            mine = order[start[i]: start[i + 1]]  # grouped once: no scan per image
+            if not mine.size:
                 continue
-            rows, cols = meas.row[m_idx][mine], meas.col[m_idx][mine]
+            rows, cols = row_w[mine], col_w[mine]
             if block.dem is not None:
                 g, _ = localize(models[i], rows, cols, block.dem, warn=False)
             else:
@@ -365,10 +381,11 @@ class _Engine:
             at[tp_points] = heights
             h_ray = at[point_of[want]]
             for i, image in enumerate(ids):
-                mine = (meas.image[m_idx] == image) & np.isfinite(h_ray)
-                if mine.any():
-                    g, _ = models[i].backproject_with_status(
-                        meas.row[m_idx][mine], meas.col[m_idx][mine], h_ray[mine])
+                mine = order[start[i]: start[i + 1]]
+                mine = mine[np.isfinite(h_ray[mine])]
+                if mine.size:
+                    g, _ = models[i].backproject_with_status(row_w[mine], col_w[mine],
+                                                             h_ray[mine])
                     xyz[mine] = np.stack(coords.geodetic_to_ecef(*g), axis=-1)
         pts = point_of[want]
         sums = np.zeros((point_of.max() + 1, 3))
@@ -402,7 +419,7 @@ class _Engine:
         computed = np.full(s.obs.shape, np.nan)
         status = np.zeros(s.obs.shape[0], np.uint8)
         for i, model in enumerate(models):
-            mine = np.flatnonzero(s.image_of == i)
+            mine = s.of_image(i)
             if mine.size == 0:
                 continue
             j = s.point_of[mine]
@@ -496,7 +513,7 @@ class _Engine:
         # a model whose parameters act locally (splines in time) fills a few of its image's
         parts = []
         for i, model in enumerate(ev.models):
-            mine = np.flatnonzero(s.image_of == i)
+            mine = s.of_image(i)
             if mine.size == 0:
                 continue
             j = s.point_of[mine]
@@ -697,7 +714,7 @@ class _Engine:
                 converged = True
                 break
         for i, image in enumerate(s.ids):
-            mine = np.flatnonzero(s.image_of == i)
+            mine = s.of_image(i)
             if mine.size and s.adj[i].size:
                 j = s.point_of[mine]
                 check_not_degenerate(s.models[i], ev.models[i], ev.lon[j], ev.lat[j],
