@@ -346,6 +346,7 @@ def test_csr_assembly_equals_triplets_and_dense(monkeypatch, damping):
     ref = NormalSystem(**{**p, "solver": "dense"})
     dp_ref, dx_ref = ref.solve(damping)
     got = {}
+    monkeypatch.setattr(normal, "SPARSE_CHUNK_TRIPLETS", 300)  # the triplets in many runs
     for numba in (True, False):
         for csr in (True, False):
             monkeypatch.setattr(normal, "USE_NUMBA", numba)
