@@ -22,6 +22,7 @@ from geoblock.adjust._control import (
 from geoblock.adjust.normal import (
     DENSE_LIMIT,
     NormalSystem,
+    SelectedCofactor,
     SingularPoints,
     compress_columns,
     measurement_pairs,
@@ -136,7 +137,7 @@ class _Evaluation:
 class _Statistics:
     """Cofactors, redundancy numbers and test statistics of a solution."""
 
-    q_pp: Float64Array  # (K, K)
+    q_pp: Any  # (K, K) ndarray, or a SelectedCofactor (NaN where not held)
     q_xx: Float64Array  # (J, 3, 3)
     q_px: Any  # the parameter-point cofactor blocks, as NormalSystem.point_cofactors gives
     test: Float64Array  # (M,)
@@ -198,9 +199,11 @@ class _Engine:
 
     def __init__(self, block: Block, ids: tuple[str, ...], *, use_tps: bool,
                  dem_control: str, tp_sigma_factor: float, tp_sigma_m: float | None,
-                 tp_prior: str, notes: list[str], solver: str = "auto") -> None:
+                 tp_prior: str, notes: list[str], solver: str = "auto",
+                 covariance: str | tuple[str, ...] = "auto") -> None:
         self.block = block
         self.solver = solver
+        self.covariance = covariance
         self.tp_prior = tp_prior
         self.tp_sigma_m_first = FLOATING_TP_SIGMA_M
         self.dem_control = dem_control if block.dem is not None else "none"
@@ -622,6 +625,13 @@ class _Engine:
     def run(self, *, max_iterations: int, tolerance: float, robust: str, robust_k: float,
             alpha: float, label: str, progress: Callable[[str], None]) -> _Solution:
         s = self.s
+        if robust == "snooping" and not self.full_covariance():
+            raise AdjustmentError(
+                f"{label}: robust='snooping' tests every measurement with its redundancy, "
+                f"which needs the full parameter cofactor: {s.n_params} parameters here, "
+                f"covariance={self.covariance!r} (the full one is computed up to "
+                f"{DENSE_LIMIT} with 'auto'); use robust='huber' or 'cauchy', or "
+                "covariance='full'")
         x = s.prior_x.copy()
         pts = s.x0.copy()
         history: list[dict[str, Any]] = []
@@ -776,11 +786,29 @@ class _Engine:
                 f"where the unadjusted model projects their ground point: {listed}; check "
                 "their ground coordinates, image ids and measurements")
 
+    def full_covariance(self) -> bool:
+        """Whether :meth:`statistics` computes the full parameter cofactor."""
+        return self.covariance == "full" or (self.covariance == "auto"
+                                            and self.s.n_params <= DENSE_LIMIT)
+
     def statistics(self, ev: _Evaluation, system: NormalSystem) -> _Statistics:
-        """Per-measurement hat blocks, redundancy and leave-one-out test statistics."""
-        q_pp = system.parameter_cofactor()
-        q_xx, q_px = system.point_cofactors(q_pp)
+        """Per-measurement hat blocks, redundancy and leave-one-out test statistics.
+
+        ``covariance`` (the engine's): the full ``Q_pp`` (``"full"``, or ``"auto"`` up to
+        :data:`DENSE_LIMIT` parameters), the columns of some images (a sequence of image
+        ids: :meth:`NormalSystem.cofactor_columns`, solved from the factorisation), or none
+        (``"none"``, ``"auto"`` above): what is not held is NaN downstream."""
         s = self.s
+        q_pp: Any
+        if self.full_covariance():
+            q_pp = system.parameter_cofactor()
+        elif isinstance(self.covariance, str):  # none
+            q_pp = SelectedCofactor(n_params=s.n_params, columns=np.zeros(0, np.intp),
+                                    q=np.zeros((0, 0)))
+        else:
+            mine = np.flatnonzero(np.isin(np.array(s.ids), list(self.covariance)))
+            q_pp = system.parameter_cofactor(system.cofactor_columns(images=mine))
+        q_xx, q_px = system.point_cofactors(q_pp)
         w = np.where(ev.ok, self.weight, 0.0)
         # D = J Q J^T / sigma^2 (a-priori whitening), every measurement, rejected ones too
         d = system.hat_blocks(q_pp, q_xx, q_px, *self.prior_whitened)[: s.obs.shape[0]]

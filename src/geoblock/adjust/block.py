@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -67,7 +67,7 @@ from geoblock.adjust._engine import (
     _Statistics,
 )
 from geoblock.adjust._islands import check_block
-from geoblock.adjust.normal import SOLVERS
+from geoblock.adjust.normal import DENSE_LIMIT, SOLVERS, SelectedCofactor
 from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust.problem import (
     CONTROL_SHIFTS,
@@ -119,6 +119,7 @@ def adjust(
     control_shifts: str = "consider",
     components: str = "refuse",
     solver: str = "auto",
+    covariance: str | Sequence[str] = "auto",
     progress: Callable[[str], None] | None = None,
 ) -> BlockResult:
     """Adjust a block (module docstring).
@@ -195,6 +196,17 @@ def adjust(
         parameters), a sparse direct factorisation, or conjugate gradients preconditioned
         by the images' blocks; ``"auto"`` chooses by size and memory.
         :attr:`BlockResult.solver` states what solved the final system.
+    covariance : {"auto", "full", "none"} or sequence of str
+        Which parameter cofactors the statistics compute after the solution: ``"full"``
+        the dense ``Q_pp`` (a (K, K) array: 29 GB at 6 x 10^4 parameters); ``"none"``
+        none; a sequence of image ids, those images' parameter columns only (solved from
+        the factorisation, never the dense inverse). ``"auto"`` (default): full up to
+        :data:`~geoblock.adjust.normal.DENSE_LIMIT` parameters, none above. What is not
+        computed is NaN (parameter sigmas, point covariances, redundancy numbers, test
+        statistics, predicted check-point sigmas) and a note says so;
+        :attr:`BlockResult.covariance` then holds the computed columns only, in the order
+        of :attr:`BlockResult.parameter_index`. ``robust="snooping"`` needs the full one
+        (refused otherwise).
     progress : callable, optional
         Called with one line per iteration.
 
@@ -229,6 +241,17 @@ def adjust(
         raise AdjustmentError(f"adjust: alpha must be in (0, 1), got {alpha!r}")
     if tp_sigma_m is not None and not (math.isfinite(tp_sigma_m) and tp_sigma_m > 0):
         raise AdjustmentError(f"adjust: tp_sigma_m must be > 0, got {tp_sigma_m!r}")
+    if isinstance(covariance, str):
+        if covariance not in ("auto", "full", "none"):
+            raise AdjustmentError("adjust: covariance must be 'auto', 'full', 'none' or a "
+                                  f"sequence of image ids, got {covariance!r}")
+        cov_option: str | tuple[str, ...] = covariance
+    else:
+        cov_option = tuple(str(c) for c in covariance)
+        unknown = [c for c in cov_option if c not in block.models]
+        if unknown:
+            raise AdjustmentError(f"adjust: covariance names image(s) not in the block: "
+                                  f"{', '.join(unknown[:8])}")
     if solver not in SOLVERS:
         raise AdjustmentError(f"adjust: solver must be one of {SOLVERS}, got {solver!r}")
     if control_shifts not in CONTROL_SHIFTS:
@@ -237,7 +260,12 @@ def adjust(
     groups = (check_block(block, components) if mode == "block"
               else [(i,) for i in block.image_ids])
     if control_shifts == "consider" and has_source_shifts(block):
+        if cov_option != "full" and cov_option != "auto":
+            raise AdjustmentError("adjust: control_shifts='consider' propagates the sources' "
+                                  "common errors through the full covariance: use "
+                                  "covariance='full' or 'auto', or control_shifts='estimate'")
         options: dict[str, Any] = {"components": components, "solver": solver,
+                                   "covariance": covariance,
             "mode": mode, "dem_control": dem_control, "tp_sigma_factor": tp_sigma_factor,
                    "tp_sigma_m": tp_sigma_m, "tp_prior": tp_prior, "robust": robust,
                    "robust_k": robust_k, "alpha": alpha, "collocation": collocation,
@@ -273,7 +301,8 @@ def adjust(
         engine = _Engine(block, group, use_tps=mode == "block",
                          dem_control=dem_control if mode == "block" else "none",
                          tp_sigma_factor=tp_sigma_factor, tp_sigma_m=tp_sigma_m,
-                         tp_prior=tp_prior, notes=notes, solver=solver)
+                         tp_prior=tp_prior, notes=notes, solver=solver,
+                         covariance=cov_option)
         label = ("block" if len(groups) == 1 else f"group {len(solutions) + 1}"
                  ) if mode == "block" else f"single {group[0]}"
         out = engine.run(max_iterations=max_iterations, tolerance=tolerance, robust=robust,
@@ -312,6 +341,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
     for engine, out, st in solutions:
         s = engine.s
         ev = out.ev
+        sol_index: list[tuple[str, str]] = []  # (image, name) of each model parameter column
         n_obs = engine._n_obs(ev)
         dof_k = n_obs - s.n_params - 3 * s.p_id.size
         cost += ev.cost
@@ -326,7 +356,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
             model = ev.models[i]
             models[image] = model
             g = s.gidx[i, : s.adj[i].size]
-            q = st.q_pp[np.ix_(g, g)] * var0
+            q = _cofactor_block(st.q_pp, g) * var0
             q_by_image[image] = (s.adj[i], q)
             names = tuple(model.parameters.names[a] for a in s.adj[i])
             parameters[image] = ParameterEstimates(
@@ -335,7 +365,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
                 values=np.array(model.parameters.values[s.adj[i]]),
                 prior_sigmas=np.sqrt(np.diag(engine.priors[i][1])[s.adj[i]]),
                 sigmas=np.sqrt(np.diag(q)))
-            index.extend((image, n) for n in names)
+            sol_index.extend((image, n) for n in names)
         v[s.m_sel] = ev.v
         weight[s.m_sel] = np.where(ev.ok, engine.weight, 0.0)
         red[s.m_sel] = st.redundancy
@@ -355,7 +385,7 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         sh = engine.shifts
         if sh is not None:
             k0 = sh.first
-            q_shift = st.q_pp[k0:, k0:] * var0
+            q_shift = _cofactor_block(st.q_pp, np.arange(k0, s.n_params)) * var0
             for i_src, source in enumerate(sh.sources):
                 idx = sh.index[i_src]
                 have = idx >= 0
@@ -373,7 +403,15 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
                     lon=float(sh.centroid[i_src, 0]), lat=float(sh.centroid[i_src, 1]),
                     h=float(sh.centroid[i_src, 2]), n_points=int(sh.n_points[i_src]))
         k_models = s.n_model_params  # the source shifts come after
-        solution_cov.append(st.q_pp[:k_models, :k_models] * var0)
+        if isinstance(st.q_pp, SelectedCofactor):  # the selected images' columns only
+            held = st.q_pp.columns[st.q_pp.columns < k_models]
+            solution_cov.append(st.q_pp.block(held) * var0)
+            index.extend(sol_index[c] for c in held)
+            if not engine.full_covariance():
+                notes.append(_covariance_note(engine, held.size))
+        else:
+            solution_cov.append(st.q_pp[:k_models, :k_models] * var0)
+            index.extend(sol_index)
         if s.hcp_h is not None:
             j = np.flatnonzero(np.isfinite(s.hcp_h))
             hcp_parts.append((s.p_id[j], s.hcp_h[j], ev.h[j], s.hcp_sigma[j]
@@ -430,7 +468,10 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
     check_source = (np.empty(0, str) if ground is None or not len(check)
                     else ground.source[lookup(ground.id, check.id)])
     vertical = None
-    if ground is not None and np.any(meas.kind == "icp"):
+    full = all(engine.full_covariance() for engine, _, _ in solutions)
+    if ground is not None and np.any(meas.kind == "icp") and not full:
+        notes.append("vertical check at the ICPs not computed: it needs the full covariance")
+    elif ground is not None and np.any(meas.kind == "icp"):
         from geoblock.adjust._vertical import vertical_check
 
         vertical = vertical_check(block, models, adjusted, covariance, index)
@@ -487,6 +528,26 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         history=history, mode=mode, dem_control=dem_control if mode == "block" else "none",
         robust=robust, notes=notes, predicted_covariance=pred_cov, check_source=check_source,
         shifts=shifts, hcp=hcp, vertical=vertical, grid_covariance=grid, solver=solver)
+
+
+def _cofactor_block(q_pp: Any, cols: IndexArray) -> Float64Array:
+    """``Q_pp[cols][:, cols]`` of a dense cofactor or a SelectedCofactor (NaN not held)."""
+    if isinstance(q_pp, SelectedCofactor):
+        if q_pp.columns.size == 0:  # nothing held (SelectedCofactor.block indexes its q)
+            return np.where(np.asarray(cols)[:, None] < 0, 0.0,
+                            np.full((len(cols), len(cols)), np.nan))
+        return q_pp.block(cols)
+    return np.asarray(q_pp[np.ix_(cols, cols)], dtype=np.float64)
+
+
+def _covariance_note(engine: _Engine, held: int) -> str:
+    k = engine.s.n_params
+    what = ("none" if isinstance(engine.covariance, str)
+            else f"those of {len(engine.covariance)} requested image(s), {held} columns")
+    return (f"covariances: {k} parameters; the parameter cofactors computed are {what} "
+            f"(covariance={engine.covariance!r}; 'auto' computes the full one up to "
+            f"{DENSE_LIMIT} parameters): the other parameters' sigmas, the point covariances "
+            "and the redundancy numbers and test statistics that need them are NaN")
 
 
 def check_errors(block: Block, models: Mapping[str, SensorModel] | None = None) -> PointErrors:

@@ -227,7 +227,9 @@ class BlockResult:
         The adjusted model of every image.
     parameters : dict of str to ParameterEstimates
     covariance : ndarray, (K, K)
-        Posterior covariance of all adjusted parameters, in the order of ``parameter_index``.
+        Posterior covariance of all adjusted parameters, in the order of ``parameter_index``
+        (with ``adjust(covariance="none" | [ids])``, or ``"auto"`` above DENSE_LIMIT
+        parameters: of the computed ones only, a note says so).
     parameter_index : list of (str, str)
         ``(image, parameter name)`` of each row of ``covariance``.
     points : PointResults
@@ -329,6 +331,10 @@ class BlockResult:
         idx = np.array([k for k, (i, _) in enumerate(self.parameter_index) if i == image],
                        dtype=np.intp)
         names = tuple(self.parameter_index[k][1] for k in idx)
+        if not idx.size and image in self.parameters and self.parameters[image].names:
+            # adjusted, its covariance not computed (adjust(covariance=...)): NaN
+            n = len(self.parameters[image].names)
+            return self.parameters[image].names, np.full((n, n), np.nan)
         cov = np.asarray(self.covariance, dtype=np.float64)
         return names, cov[np.ix_(idx, idx)] if idx.size else np.zeros((0, 0))
 

@@ -31,11 +31,20 @@ __all__ = ["adjust"]
               "(default: on for the dg method).")
 @click.option("--max-iterations", type=click.IntRange(min=1), default=None,
               help="Iteration cap of Gauss-Newton (default 30).")
+@click.option("--components", type=click.Choice(["refuse", "separate", "joint"]),
+              default=None, help="A block whose images form groups that no GCP or tie point "
+              "links: refuse (default; the groups are named before solving), separate (each "
+              "group adjusted alone, one report) or joint (one system).")
+@click.option("--solver", type=click.Choice(["auto", "dense", "direct", "iterative"]),
+              default=None, help="How the reduced normal equations are solved: dense "
+              "Cholesky, sparse direct factorisation, or preconditioned conjugate gradients; "
+              "auto (default) chooses by size and memory and the report says which.")
 @click.option("--no-figures", is_flag=True, default=False, help="Do not draw the PNG figures.")
 @overwrite_opt
 def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_single: bool,
            dem_control: str | None, robust: str | None, collocation: bool | None,
-           max_iterations: int | None, no_figures: bool, overwrite: bool) -> None:
+           max_iterations: int | None, components: str | None, solver: str | None,
+           no_figures: bool, overwrite: bool) -> None:
     """Adjust the block described by BLOCK.toml and write the adjusted models and a report.
 
     The block file names the images (sensor-model files), the parameter set or image-space
@@ -77,7 +86,8 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
     opened = open_block(spec, name=block_file)
     options = dict(opened.options)
     for key, value in (("mode", mode), ("dem_control", dem_control), ("robust", robust),
-                       ("collocation", collocation), ("max_iterations", max_iterations)):
+                       ("collocation", collocation), ("max_iterations", max_iterations),
+                       ("components", components), ("solver", solver)):
         if value is not None:
             options[key] = value
 

@@ -35,6 +35,8 @@ relative to the block file's directory. Example::
     sigma_px = 0.5                # measurements without a sigma column
     collocation = { filtering_ratio = 0.2 }
     control_shifts = "consider"   # consider | estimate: a control source's common error
+    components = "refuse"         # refuse | separate | joint: disconnected groups of images
+    solver = "auto"               # auto | dense | direct | iterative: the reduced system
 
     [match]                   # optional: which pairs geoblock match matches (MATCH_OPTIONS)
     min_overlap = 0.1             # share of the smaller footprint
@@ -686,7 +688,8 @@ ADJUST_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
     "dem_control": (str,), "tp_sigma_factor": (int, float), "tp_sigma_m": (int, float),
     "tp_prior": (str,), "robust": (str,), "robust_k": (int, float), "alpha": (float,),
     "max_iterations": (int,), "tolerance": (int, float), "collocation": (bool, Mapping),
-    "sigma_px": (int, float), "control_shifts": (str,),
+    "sigma_px": (int, float), "control_shifts": (str,), "components": (str,),
+    "solver": (str,),
 })
 _COLLOCATION_KEYS = ("filtering_ratio", "d_max")
 
