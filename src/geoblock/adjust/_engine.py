@@ -27,6 +27,7 @@ from geoblock.adjust.normal import (
     compress_columns,
     measurement_pairs,
 )
+from geoblock.adjust._start import WarmStart
 from geoblock.adjust.observations import ImagePoints, lookup
 from geoblock.adjust.weights import (
     check_measured_geometry,
@@ -200,7 +201,8 @@ class _Engine:
     def __init__(self, block: Block, ids: tuple[str, ...], *, use_tps: bool,
                  dem_control: str, tp_sigma_factor: float, tp_sigma_m: float | None,
                  tp_prior: str, notes: list[str], solver: str = "auto",
-                 covariance: str | tuple[str, ...] = "auto") -> None:
+                 covariance: str | tuple[str, ...] = "auto",
+                 start: WarmStart | None = None) -> None:
         self.block = block
         self.solver = solver
         self.covariance = covariance
@@ -229,6 +231,19 @@ class _Engine:
         prior_w = scipy.sparse.csr_matrix(prior_w, shape=(k, k))
         prior_x = _params_vector(models, adj, gidx, k)
 
+        # the starting estimate: the a-priori values, or a previous solution's
+        self.x_start = prior_x.copy()
+        trusted = np.zeros(len(ids), bool)  # images starting from a previous solution
+        if start is not None:
+            for i, image in enumerate(ids):
+                values = start.parameters.get(image)
+                if not values:
+                    continue
+                trusted[i] = True
+                names = models[i].parameters.names
+                for kk, a in enumerate(adj[i]):
+                    if names[a] in values:
+                        self.x_start[gidx[i, kk]] = values[names[a]]
         kinds = ("gcp", "tp", "hcp") if use_tps else ("gcp",)
         sel = np.flatnonzero(np.isin(meas.image, ids) & np.isin(meas.kind, kinds))
         # points in the solution
@@ -265,10 +280,27 @@ class _Engine:
             assert ground is not None  # HCP kinds come from the ground points
             hcp_h = np.where(is_hcp, ground.h[gk], np.nan)
             hcp_sigma = np.where(is_hcp, ground.sigma_h[gk], np.nan)
+        # warm start: the points a previous solution holds start where it left them
+        w_at = (lookup(start.id, p_id) if start is not None and start.id.size
+                else np.full(p_id.size, -1))
+        warm = w_at >= 0
         if is_tp.any():
-            at = None if hcp_h is None else hcp_h[is_tp]
-            lon0[is_tp], lat0[is_tp], h0[is_tp] = self._initial_tps(
-                models, ids, meas, sel, point_of, np.flatnonzero(is_tp), at)
+            # floating TP priors are centred on the starting positions: the warm TPs need no
+            # ray tracing; fixed ones are centred on the on-board positions: all traced
+            cold = is_tp & ~warm if tp_prior == "floating" else is_tp
+            at = None if hcp_h is None else hcp_h[cold]
+            if cold.any():
+                # a warm start traces the new points through the solved images' models
+                # (only theirs where they see the point), the others' on-board ones
+                lon0[cold], lat0[cold], h0[cold] = self._initial_tps(
+                    models if start is None else _with_params(models, adj, gidx,
+                                                              self.x_start),
+                    ids, meas, sel, point_of, np.flatnonzero(cold), at,
+                    trusted=None if start is None or tp_prior != "floating" else trusted)
+            if tp_prior == "floating" and start is not None:
+                hot = is_tp & warm
+                lon0[hot], lat0[hot], h0[hot] = (start.lon[w_at[hot]], start.lat[w_at[hot]],
+                                                 start.h[w_at[hot]])
             if hcp_h is not None:  # an HCP's lon/lat, when given, as its initial position
                 assert ground is not None
                 given = is_hcp & np.isfinite(ground.lon[gk]) & np.isfinite(ground.lat[gk])
@@ -294,6 +326,7 @@ class _Engine:
                 [prior_w, scipy.sparse.diags(1.0 / np.maximum(sig_shift, MIN_GROUND_SIGMA_M)
                                              ** 2)], format="csr")
             prior_w, prior_x = w_all, np.concatenate([prior_x, np.zeros(k_all - k)])
+            self.x_start = np.concatenate([self.x_start, np.zeros(k_all - k)])
         self.s = _Setup(
             ids=ids, models=models, adj=adj, gidx=gidx, n_params=k, prior_x=prior_x,
             prior_w=prior_w, m_sel=sel, image_of=image_of, point_of=point_of,
@@ -310,6 +343,14 @@ class _Engine:
             self.pseudo_point = np.repeat(np.flatnonzero(self.shifts.shifted), 2)
             point_of = np.concatenate([point_of, self.pseudo_point])
         self.pairs = measurement_pairs(point_of, p_id.size)
+        self.pts_start = x0.copy()
+        if start is not None:
+            if warm.any():
+                self.pts_start[warm] = np.stack(frame.from_geodetic(
+                    start.lon[w_at[warm]], start.lat[w_at[warm]], start.h[w_at[warm]]), -1)
+            notes.append(f"warm start from {start.source}: "
+                         f"{sum(1 for i in ids if start.parameters.get(i))} of {len(ids)} "
+                         f"images and {int(warm.sum())} of {p_id.size} points start from it")
         self.weight = np.ones(sel.size)  # robust weight factors
 
     # ------------------------------------------------------------------ checks
@@ -350,11 +391,13 @@ class _Engine:
 
     def _initial_tps(self, models: list[SensorModel], ids: tuple[str, ...], meas: ImagePoints,
                      sel: IndexArray, point_of: IndexArray, tp_points: IndexArray,
-                     heights: Float64Array | None = None,
+                     heights: Float64Array | None = None, trusted: BoolArray | None = None,
                      ) -> tuple[Float64Array, Float64Array, Float64Array]:
         """Initial TP positions: each ray localised on the DEM (or at the GCPs' mean
         height), averaged in ECEF; then put on the DEM. Points with a finite ``heights``
-        (per ``tp_points``: the HCPs) are located at that height instead."""
+        (per ``tp_points``: the HCPs) are located at that height instead. With ``trusted`` (I,)
+        (a warm start's solved images), a point seen by a trusted image is averaged from the
+        trusted images' rays only."""
         from geoblock.dem.intersect import localize
 
         block = self.block
@@ -394,6 +437,10 @@ class _Engine:
         sums = np.zeros((point_of.max() + 1, 3))
         cnt = np.zeros(point_of.max() + 1)
         ok = np.all(np.isfinite(xyz), axis=1)
+        if trusted is not None:  # a point seen by a trusted image: its rays only
+            mine = ok & trusted[img]
+            seen = np.bincount(pts[mine], minlength=point_of.max() + 1) > 0
+            ok &= ~seen[pts] | trusted[img]
         np.add.at(sums, pts[ok], xyz[ok])
         np.add.at(cnt, pts[ok], 1)
         failed = tp_points[cnt[tp_points] == 0]
@@ -632,8 +679,8 @@ class _Engine:
                 f"covariance={self.covariance!r} (the full one is computed up to "
                 f"{DENSE_LIMIT} with 'auto'); use robust='huber' or 'cauchy', or "
                 "covariance='full'")
-        x = s.prior_x.copy()
-        pts = s.x0.copy()
+        x = self.x_start.copy()
+        pts = self.pts_start.copy()
         history: list[dict[str, Any]] = []
         ev = self.evaluate(x, pts)
         self._check_status(ev)

@@ -67,6 +67,7 @@ from geoblock.adjust._engine import (
     _Statistics,
 )
 from geoblock.adjust._islands import check_block
+from geoblock.adjust._start import warm_start
 from geoblock.adjust.normal import DENSE_LIMIT, SOLVERS, SelectedCofactor
 from geoblock.adjust._consider import CONSIDER_STEP_M, consider_sources, has_source_shifts
 from geoblock.adjust.problem import (
@@ -120,6 +121,7 @@ def adjust(
     components: str = "refuse",
     solver: str = "auto",
     covariance: str | Sequence[str] = "auto",
+    start: Any = None,
     progress: Callable[[str], None] | None = None,
 ) -> BlockResult:
     """Adjust a block (module docstring).
@@ -207,6 +209,13 @@ def adjust(
         :attr:`BlockResult.covariance` then holds the computed columns only, in the order
         of :attr:`BlockResult.parameter_index`. ``robust="snooping"`` needs the full one
         (refused otherwise).
+    start : BlockResult or path, optional
+        Warm start (:mod:`geoblock.adjust._start`): a previous solution of (part of) the
+        block, as a BlockResult or the output directory (or its ``report.json``) of
+        ``geoblock adjust``. Its images start from their adjusted parameters and its points
+        from their adjusted coordinates; the others from their on-board models and
+        ray-traced positions. The answer is the cold start's (to ``tolerance``), in fewer
+        iterations when little changed (images added to a solved block).
     progress : callable, optional
         Called with one line per iteration.
 
@@ -252,6 +261,7 @@ def adjust(
         if unknown:
             raise AdjustmentError(f"adjust: covariance names image(s) not in the block: "
                                   f"{', '.join(unknown[:8])}")
+    warm = None if start is None else warm_start(start)
     if solver not in SOLVERS:
         raise AdjustmentError(f"adjust: solver must be one of {SOLVERS}, got {solver!r}")
     if control_shifts not in CONTROL_SHIFTS:
@@ -265,7 +275,7 @@ def adjust(
                                   "common errors through the full covariance: use "
                                   "covariance='full' or 'auto', or control_shifts='estimate'")
         options: dict[str, Any] = {"components": components, "solver": solver,
-                                   "covariance": covariance,
+                                   "covariance": covariance, "start": warm,
             "mode": mode, "dem_control": dem_control, "tp_sigma_factor": tp_sigma_factor,
                    "tp_sigma_m": tp_sigma_m, "tp_prior": tp_prior, "robust": robust,
                    "robust_k": robust_k, "alpha": alpha, "collocation": collocation,
@@ -302,7 +312,7 @@ def adjust(
                          dem_control=dem_control if mode == "block" else "none",
                          tp_sigma_factor=tp_sigma_factor, tp_sigma_m=tp_sigma_m,
                          tp_prior=tp_prior, notes=notes, solver=solver,
-                         covariance=cov_option)
+                         covariance=cov_option, start=warm)
         label = ("block" if len(groups) == 1 else f"group {len(solutions) + 1}"
                  ) if mode == "block" else f"single {group[0]}"
         out = engine.run(max_iterations=max_iterations, tolerance=tolerance, robust=robust,

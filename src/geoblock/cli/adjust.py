@@ -39,12 +39,17 @@ __all__ = ["adjust"]
               default=None, help="How the reduced normal equations are solved: dense "
               "Cholesky, sparse direct factorisation, or preconditioned conjugate gradients; "
               "auto (default) chooses by size and memory and the report says which.")
+@click.option("--start", "start", metavar="DIR_OR_FILE", default=None,
+              type=click.Path(exists=True),
+              help="Warm start from a previous 'geoblock adjust' output (its directory or its "
+              "report.json): the images and points it solved start from its solution, the "
+              "others from their on-board models; the same answer in fewer iterations.")
 @click.option("--no-figures", is_flag=True, default=False, help="Do not draw the PNG figures.")
 @overwrite_opt
 def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_single: bool,
            dem_control: str | None, robust: str | None, collocation: bool | None,
            max_iterations: int | None, components: str | None, solver: str | None,
-           no_figures: bool, overwrite: bool) -> None:
+           start: str | None, no_figures: bool, overwrite: bool) -> None:
     """Adjust the block described by BLOCK.toml and write the adjusted models and a report.
 
     The block file names the images (sensor-model files), the parameter set or image-space
@@ -94,10 +99,13 @@ def adjust(block_file: str, out_dir: str | None, mode: str | None, compare_singl
     def say(message: str) -> None:
         click.echo(message, err=True)
 
+    if start is not None:
+        options["start"] = start
     result = run(opened.block, progress=say, **options)
     single = None
     if compare_single and options.get("mode", "block") == "block":
-        single = run(opened.block, progress=say, **{**options, "mode": "single"})
+        single = run(opened.block, progress=say,
+                     **{**options, "mode": "single", "start": None})
     title = f"Block adjustment: {opened.spec.name or Path(block_file).name} " \
             f"(method {opened.spec.method})"
     written = write_result(result, out, single=single, title=title, figures=not no_figures)
