@@ -463,10 +463,16 @@ def _assemble(block: Block, solutions: list[tuple[_Engine, _Solution, _Statistic
         from geoblock.adjust.collocation import CollocationCorrection, fit_collocation
 
         options = dict(collocation) if isinstance(collocation, Mapping) else {}
-        for image in list(models):
-            use = (meas.image == image) & np.isfinite(weight) & (weight > 0) & ~flagged
-            if use.sum() < 3:
-                notes.append(f"collocation: image {image} has {int(use.sum())} residual "
+        good = np.flatnonzero(np.isfinite(weight) & (weight > 0) & ~flagged)
+        # grouped by image once: no scan of every measurement per image
+        image_ids = list(models)
+        of_image = lookup(np.array(image_ids), meas.image[good])
+        order = np.argsort(of_image, kind="stable")
+        start = np.searchsorted(of_image[order], np.arange(len(image_ids) + 1))
+        for k, image in enumerate(image_ids):
+            use = good[order[start[k]: start[k + 1]]]
+            if use.size < 3:
+                notes.append(f"collocation: image {image} has {use.size} residual "
                              "vectors, fewer than 3: not applied")
                 continue
             col = fit_collocation(meas.row[use], meas.col[use], v[use, 0], v[use, 1], **options)
