@@ -37,6 +37,8 @@ relative to the block file's directory. Example::
     control_shifts = "consider"   # consider | estimate: a control source's common error
     components = "refuse"         # refuse | separate | joint: disconnected groups of images
     solver = "auto"               # auto | dense | direct | iterative: the reduced system
+    covariance = "auto"           # auto | full | none | ["img1", ...]: cofactors computed
+    start = "adjusted"            # optional: warm start from a previous geoblock adjust output
 
     [match]                   # optional: which pairs geoblock match matches (MATCH_OPTIONS)
     min_overlap = 0.1             # share of the smaller footprint
@@ -689,7 +691,7 @@ ADJUST_OPTIONS: Mapping[str, tuple[type, ...]] = MappingProxyType({
     "tp_prior": (str,), "robust": (str,), "robust_k": (int, float), "alpha": (float,),
     "max_iterations": (int,), "tolerance": (int, float), "collocation": (bool, Mapping),
     "sigma_px": (int, float), "control_shifts": (str,), "components": (str,),
-    "solver": (str,),
+    "solver": (str,), "covariance": (str, list, tuple), "start": (str,),
 })
 _COLLOCATION_KEYS = ("filtering_ratio", "d_max")
 
@@ -770,6 +772,13 @@ def open_block(path: str | os.PathLike[str] | Block, *, name: str | None = None
         if key == "sigma_px":
             reading["sigma_px"] = float(value)
             continue
+        if key == "start" and not isinstance(path, Block):  # relative to the block file
+            value = str(Path(path).resolve().parent / value)
+        if key == "covariance" and not isinstance(value, str):
+            if not all(isinstance(v, str) for v in value):
+                raise BlockFileError(f"{where} must be auto, full, none or an array of image "
+                                     f"ids, got {value!r}")
+            value = list(value)
         if key == "collocation" and isinstance(value, Mapping):
             unknown = sorted(set(value) - set(_COLLOCATION_KEYS))
             if unknown:
