@@ -569,14 +569,23 @@ class _Engine:
             j = s.point_of[mine]
             lon, lat, h = ev.lon[j], ev.lat[j], ev.h[j]
             if s.adj[i].size:
-                partials = model.partials_parameters(lon, lat, h)
+                # both partials at once where the model offers it (SensorModelBase.partials:
+                # a pushbroom solves its points once for the two), the protocol's two else
+                both = getattr(model, "partials", None)
+                if callable(both):
+                    ground, partials = both(lon, lat, h)
+                else:
+                    ground = model.partials_ground(lon, lat, h)
+                    partials = model.partials_parameters(lon, lat, h)
                 if s.adj[i].size < partials.shape[-1]:  # (all adjusted: no copy)
                     partials = partials[..., s.adj[i]]
                 failed = ~ev.ok[mine]
                 if failed.any():  # zero, as the whitening below makes them
                     partials = np.where(failed[:, None, None], 0.0, partials)
                 parts.append((mine, *compress_columns(partials, s.gidx[i, : s.adj[i].size])))
-            b[mine] = model.partials_ground(lon, lat, h) @ rot_t
+            else:
+                ground = model.partials_ground(lon, lat, h)
+            b[mine] = ground @ rot_t
         kc = max((c.shape[1] for _, _, c in parts), default=0)
         a = np.zeros((m_count, 2, kc))
         cols = np.full((m_count, kc), -1, np.intp)

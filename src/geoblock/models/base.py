@@ -534,6 +534,23 @@ class SensorModelBase(abc.ABC):
             out[..., 1, k] = (cols[0][1] - cols[1][1]) / (2 * step)
         return out
 
+    def partials(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+                 ) -> tuple[Float64Array, Float64Array]:
+        """Both partials at once: ``(partials_ground(...), partials_parameters(...))``.
+
+        The block adjustment asks for both at the same points; a model whose two partials
+        share work (a line search solving each point, as a pushbroom's) overrides this to
+        do that work once. The default calls the two methods.
+
+        Returns
+        -------
+        ground : ndarray, (*S, 2, 3)
+            d(row, col)/d(x, y, z) ECEF, pixels per metre.
+        parameters : ndarray, (*S, 2, P)
+            d(row, col)/d(parameter k), pixels per unit of parameter k.
+        """
+        return self.partials_ground(lon, lat, h), self.partials_parameters(lon, lat, h)
+
     # ---------------------------------------------------------------- geometry helpers
     def los(self, row: ArrayLike, col: ArrayLike) -> LineOfSight:
         """Lines of sight through image points, from the model's height range.

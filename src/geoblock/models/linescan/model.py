@@ -772,7 +772,17 @@ class LinescanModel(SensorModelBase):
         ``d_x/d_z = tan_x(col)``, ``d_y/d_z = tan_y(col)`` with ``d = R'(t)^T (G - P'(t))``;
         their time derivative is a central difference of ``partials_time_step_s``.
         """
-        shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
+        return self._ground_partials(self._implicit(lon, lat, h))
+
+    def partials(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike
+                 ) -> tuple[Float64Array, Float64Array]:
+        """``(partials_ground, partials_parameters)`` from one solution of the points (the
+        line search and the orbit state shared: half the work of the two calls)."""
+        imp = self._implicit(lon, lat, h)
+        return self._ground_partials(imp), self._parameter_partials(imp)
+
+    def _ground_partials(self, imp: tuple[Any, ...]) -> Float64Array:
+        shape, t, d, rot, m_orb, de_dd, jac = imp
         de_dg = de_dd @ np.swapaxes(rot, -1, -2)  # (N, 2, 3)
         with np.errstate(invalid="ignore", divide="ignore"):
             sol = -np.linalg.solve(_nan_safe(jac), de_dg)  # (N, 2, 3): d(t, col)/dG
@@ -788,7 +798,10 @@ class LinescanModel(SensorModelBase):
         is its basis function at the exposure time times its axis's bias partial: nonzero for
         four coefficients per axis and point.
         """
-        shape, t, d, rot, m_orb, de_dd, jac = self._implicit(lon, lat, h)
+        return self._parameter_partials(self._implicit(lon, lat, h))
+
+    def _parameter_partials(self, imp: tuple[Any, ...]) -> Float64Array:
+        shape, t, d, rot, m_orb, de_dd, jac = imp
         n = t.size
         dt = t - self._line_times.reference_time_s
         dd_dp = np.zeros((n, 3, len(_ALL_NAMES)))
