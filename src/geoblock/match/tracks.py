@@ -5,7 +5,8 @@ nodes are the images' keypoints and whose edges are the pairs' kept matches). A 
 reference is its keypoint in its first image (in the order given), measured as detected; the
 other images' positions come from their match with the reference, or, where a track links an
 image to its reference only through a third one, from a refinement against the reference's
-patch. Tracks holding two keypoints of one image are dropped.
+patch. Keypoints of one image at the same position (SIFT's second orientation) are one node.
+Tracks holding two keypoints of one image are dropped.
 
 Everything here is a function of the pairs' results in the pair graph's order and of the
 keypoints' positions: tie-point ids are numbered in the order of the reference image and
@@ -90,6 +91,20 @@ def join_tracks(images: Sequence[MatchImage], keypoints: Sequence[int],
     kp_pos = np.empty((total, 2))
     kp_pos[la] = np.concatenate(pos_a)
     kp_pos[lb] = np.concatenate(pos_b)
+    # SIFT gives a point with two dominant orientations two keypoints at one position: one
+    # node, or its matches with two images would become two tie points measured at the same
+    # image position (which the adjustment refuses as coincident points)
+    _, first, canon = np.unique(np.column_stack([image_of, kp_pos]), axis=0,
+                                return_index=True, return_inverse=True)
+    if first.size < total:
+        canon = canon.ravel()
+        # canonical nodes numbered in the order of (image, keypoint) of their first keypoint
+        rank = np.empty(first.size, np.intp)
+        rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+        la, lb = rank[canon[la]], rank[canon[lb]]
+        keep_first = np.sort(first)
+        image_of, kp_pos = image_of[keep_first], kp_pos[keep_first]
+        total = int(keep_first.size)
     kp_row, kp_col = kp_pos[:, 0], kp_pos[:, 1]
     graph = coo_matrix((np.ones(la.size), (la, lb)), shape=(total, total))
     _, label = connected_components(graph, directed=False)
