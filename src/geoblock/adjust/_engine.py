@@ -67,6 +67,11 @@ from geoblock.adjust.weights import parameter_prior
 
 
 # ================================================================================ engine
+#: the points per image at which an adjusted model is checked not degenerate
+#: (:func:`~geoblock.adjust.weights.check_not_degenerate`: a median over them)
+DEGENERATE_SAMPLE = 64
+
+
 @dataclass
 class _Setup:
     """Everything fixed during a solution."""
@@ -782,7 +787,10 @@ class _Engine:
         for i, image in enumerate(s.ids):
             mine = s.of_image(i)
             if mine.size and s.adj[i].size:
-                j = s.point_of[mine]
+                # the median area scale of at most DEGENERATE_SAMPLE points spread over the
+                # image's measurements (every 1 in n): the same test at any block size, not
+                # two more Jacobians of every measurement
+                j = s.point_of[mine][:: max(1, -(-mine.size // DEGENERATE_SAMPLE))]
                 check_not_degenerate(s.models[i], ev.models[i], ev.lon[j], ev.lat[j],
                                      ev.h[j], f"{label}: image {image!r}")
         system = self.linearize(x, pts, ev)
