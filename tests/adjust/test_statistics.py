@@ -285,3 +285,28 @@ def test_t_interval_covers_the_true_mean_95_percent_of_the_time():
     assert runs.n[0] == 4000
     inside = np.mean((samples[0] >= runs.low[0]) & (samples[0] <= runs.high[0]))
     assert math.isclose(inside, 0.95, abs_tol=0.002)
+
+
+def test_ictp_pairs_follow_the_models_order_whatever_the_measurements_order():
+    """The pairs of images come in the models' order (a before b), then by point id, as the
+    every-pair-of-images enumeration gave them, with the measurements given in any order."""
+    a = ConstantVelocityPushbroom.example(roll=0.002)
+    b = ConstantVelocityPushbroom.example(roll=-0.003)
+    c = ConstantVelocityPushbroom.example(roll=0.0)
+    rng = np.random.default_rng(7)
+    ground = a.backproject(rng.uniform(100, 700, 9), rng.uniform(300, 700, 9), 800.0)
+    ids = [f"t{i}" for i in (3, 1, 7, 0, 8, 2, 6, 4, 5)]
+    models = {"C": c, "A": a, "B": b}
+    id_, image, row, col = _measure(models, ground, ids)
+    id_, image = np.array(id_), np.array(image)
+    keep = ~((image == "A") & np.isin(id_, ["t0", "t5"]))
+    shuffle = rng.permutation(np.flatnonzero(keep))
+    res = ictp_accuracy(models, id_[shuffle], image[shuffle], row[shuffle], col[shuffle], 800.0)
+    expected = []
+    names = list(models)
+    for i, name_a in enumerate(names):
+        for name_b in names[i + 1:]:
+            common = sorted(set(id_[keep & (image == name_a)]) & set(id_[keep & (image == name_b)]))
+            expected += [(p, name_a, name_b) for p in common]
+    assert list(zip(res.id.tolist(), res.image_a.tolist(), res.image_b.tolist())) == expected
+    assert np.max(res.distance_3d) < 1e-3

@@ -628,6 +628,8 @@ def ictp_accuracy(
     """
     from geoblock.dem import localize  # geoblock.dem imports nothing from adjust; keep it lazy
     from geoblock.triangulation import measurements  # same layer; lazy like localize
+    from geoblock.adjust.normal import measurement_pairs
+    from geoblock.adjust.observations import lookup
 
     where = "ictp_accuracy"
     ids, images, r, c = measurements(models, id, image, row, col, where)
@@ -638,27 +640,26 @@ def ictp_accuracy(
     lat = np.full(k, np.nan)
     h = np.full(k, np.nan)
     status = np.full(k, np.uint8(Status.INVALID_INPUT), dtype=np.uint8)
+    names = [str(m) for m in models]
+    # the measurements grouped by image once (no scan of every measurement per image)
+    rank = lookup(np.array(names, dtype=str), images)  # each measurement's image, models' order
+    by_image = np.argsort(rank, kind="stable")
+    starts = np.searchsorted(rank[by_image], np.arange(len(names) + 1))
     if dem is not None:
-        for name, model in models.items():
-            sel = np.flatnonzero(images == str(name))
+        for i, model in enumerate(models.values()):
+            sel = by_image[starts[i]:starts[i + 1]]
             if sel.size:
                 g, s = localize(model, r[sel], c[sel], dem, **localize_options)
                 lon[sel], lat[sel], h[sel], status[sel] = g.lon, g.lat, g.h, s
 
-    # every pair of images measuring the same point
-    idx_a: list[IndexArray] = []
-    idx_b: list[IndexArray] = []
-    names = [str(m) for m in models]
-    for i, name_a in enumerate(names):
-        sel_a = np.flatnonzero(images == name_a)
-        for name_b in names[i + 1:]:
-            sel_b = np.flatnonzero(images == name_b)
-            _, ia, ib = np.intersect1d(ids[sel_a], ids[sel_b], assume_unique=True,
-                                       return_indices=True)
-            idx_a.append(sel_a[ia])
-            idx_b.append(sel_b[ib])
-    a = np.concatenate(idx_a) if idx_a else np.zeros(0, dtype=np.intp)
-    b = np.concatenate(idx_b) if idx_b else np.zeros(0, dtype=np.intp)
+    # every pair of images measuring the same point, in the models' order (a before b), then
+    # by point id: each point's measurements paired among themselves, not every pair of images
+    point_ids, point = np.unique(ids, return_inverse=True)
+    pairs = measurement_pairs(point.ravel(), point_ids.size)
+    first = rank[pairs.a] < rank[pairs.b]
+    a, b = pairs.a[first], pairs.b[first]
+    order = np.lexsort((point.ravel()[a], rank[b], rank[a]))
+    a, b = a[order].astype(np.intp), b[order].astype(np.intp)
     if a.size == 0:
         raise ObservationError(f"{where}: no point is measured in two images; ICTPs need a "
                                "measurement in each of at least two images")
