@@ -115,6 +115,8 @@ OPTIONS: dict[str, str] = {
     # runs
     "--variant": "the size of a simulated run: small (seconds) or larger ones (full, tiny)",
     "--seed": "the seed of every random draw",
+    "--images": "about this many images in a large simulated block",
+    "--tps": "the tie points of a whole simulated block",
     "--onboard-errors": "the simulated on-board error model: realistic or bias-drift",
     "--repeats": "repetitions over seeds",
     "--list": "list the choices and exit",
