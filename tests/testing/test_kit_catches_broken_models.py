@@ -543,7 +543,7 @@ def test_check_sensor_model_reports_every_failed_check():
     with pytest.raises(AssertionError) as info:
         check_sensor_model(pushbroom(LossyToDict), n=3)
     text = str(info.value)
-    assert text.startswith("4 of 14 conformance checks failed for LossyToDict 'broken-lossy'"), text
+    assert text.startswith("4 of 15 conformance checks failed for LossyToDict 'broken-lossy'"), text
     for name in (
         "check_with_parameters", "check_serialization", "check_pickle", "check_dask_token"
     ):
@@ -601,3 +601,20 @@ def test_contract_options_reach_the_checks(monkeypatch):
     monkeypatch.setattr(checks, "check_round_trip", fake)
     Options().test_round_trip(AffineCamera.example())
     assert seen == {"n": 2, "seed": 0, "tolerance_px": 1e-3}
+
+
+def test_partials_together_catches_a_model_whose_partials_disagree():
+    """A model whose combined partials() scales the parameter partials (a unit slip in one
+    of its two code paths) is caught; the synthetic pushbroom's own passes."""
+
+    class Slipped(ConstantVelocityPushbroom):
+        def partials(self, lon, lat, h):
+            ground, params = super().partials(lon, lat, h)
+            return ground, params * (180.0 / math.pi)
+
+    model = ConstantVelocityPushbroom.example()
+    checks.check_partials_together(model)
+    broken = model.__class__.__new__(Slipped)
+    broken.__dict__.update(model.__dict__)
+    with pytest.raises(AssertionError, match="partials_parameters"):
+        checks.check_partials_together(broken)

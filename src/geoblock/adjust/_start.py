@@ -11,7 +11,6 @@ of a cold start (to the convergence tolerance), reached in fewer iterations.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from geoblock.errors import AdjustmentError
+from geoblock.errors import AdjustmentError, GeoblockError
+from geoblock.io.files import read_json
 from geoblock.typing import Float64Array, StrArray
 
 __all__ = ["WarmStart", "warm_start"]
@@ -63,13 +63,13 @@ def warm_start(start: Any) -> WarmStart:
         path = Path(start)
         report = path / "report.json" if path.is_dir() else path
         try:
-            data = json.loads(report.read_text())
+            data = read_json(report, "the warm start's report")
             params = {image: {str(p["name"]): float(p["value"]) for p in rows
                               if p.get("value") is not None}
                       for image, rows in data["parameters"].items()}
             pts = [p for p in data["points"]
                    if all(p.get(k) is not None for k in ("lon", "lat", "h"))]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+        except (GeoblockError, OSError, ValueError, KeyError, TypeError) as exc:
             raise AdjustmentError(
                 f"adjust: start {str(path)!r}: not a geoblock adjust output (its report.json "
                 f"with 'parameters' and 'points' could not be read: {exc})") from None

@@ -917,6 +917,36 @@ def check_pickle(model: Any, *, n: int = 3, seed: int = 0) -> None:
     _same_projection(check, model, other, "pickle.loads(pickle.dumps(model))", lon, lat, h)
 
 
+def check_partials_together(model: Any, *, n: int = 3, seed: int = 0) -> None:
+    """``partials(lon, lat, h)``, when the model has it, equals ``(partials_ground,
+    partials_parameters)`` called apart (the block adjustment uses it for both).
+
+    Raises
+    ------
+    AssertionError
+        Naming which of the two differs, and by how much.
+    """
+    check = "check_partials_together"
+    both = getattr(model, "partials", None)
+    if not callable(both):
+        return  # optional: the adjustment then calls the two methods
+    _, _, _, lon, lat, h = _sample(model, check, n, seed)
+    got = _call(check, model, "partials(lon, lat, h)", both, lon, lat, h)
+    if not (isinstance(got, tuple) and len(got) == 2):
+        raise _error(check, model, "partials(lon, lat, h) must return a pair "
+                     "(partials_ground, partials_parameters)")
+    for name, value, ref in (("partials_ground", got[0], model.partials_ground(lon, lat, h)),
+                             ("partials_parameters", got[1],
+                              model.partials_parameters(lon, lat, h))):
+        value, ref = np.asarray(value), np.asarray(ref)
+        if value.shape != ref.shape or not np.allclose(value, ref, rtol=1e-12, atol=0.0,
+                                                       equal_nan=True):
+            worst = (float(np.nanmax(np.abs(value - ref))) if value.shape == ref.shape
+                     else float("nan"))
+            raise _error(check, model, f"partials(...) differs from {name}(...) (shapes "
+                         f"{value.shape} and {ref.shape}, largest difference {_g(worst)})")
+
+
 def check_dask_token(model: Any) -> None:
     """``dask.base.tokenize`` is deterministic and follows the model's value.
 
@@ -1667,6 +1697,7 @@ CHECKS: tuple[Callable[..., object], ...] = (
     check_serialization,
     check_pickle,
     check_dask_token,
+    check_partials_together,
 )
 
 

@@ -8,11 +8,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-import numpy as np
 import pytest
 
 from geoblock.testing import checks
-from geoblock.typing import Status
 
 __all__ = ["SensorModelContract"]
 
@@ -104,20 +102,8 @@ class SensorModelContract:
         self._run(checks.check_parameter_partials, model)
 
     def test_partials_together(self, model: Any) -> None:
-        """``partials`` (when the model has it) equals partials_ground and
-        partials_parameters called apart: the block adjustment uses it for both."""
-        both = getattr(model, "partials", None)
-        if not callable(both):
-            pytest.skip("the model has no partials(): the adjustment calls the two apart")
-        row, col, h = checks.image_sample(model, n=3)
-        g, status = model.backproject_with_status(row, col, h)
-        ok = status == Status.CONVERGED
-        lon, lat, h = np.asarray(g.lon)[ok], np.asarray(g.lat)[ok], np.asarray(h)[ok]
-        ground, params = both(lon, lat, h)
-        np.testing.assert_allclose(ground, model.partials_ground(lon, lat, h),
-                                   rtol=1e-12, atol=0, err_msg="partials()[0]")
-        np.testing.assert_allclose(params, model.partials_parameters(lon, lat, h),
-                                   rtol=1e-12, atol=0, err_msg="partials()[1]")
+        """partials(), when the model has it, equals the two partials called apart."""
+        self._run(checks.check_partials_together, model)
 
     def test_parameter_perturbation(self, model: Any) -> None:
         """A parameter change moves projections as the partials predict."""
