@@ -130,19 +130,7 @@ def matched_block(out: Path, tp_csv: Path) -> Path:
     for r in matched:
         r["id"] = "m" + r["id"]  # never the same id as a simulated point
         r.setdefault("kind", "tp")
-    # one image position measured for two tie points (two tracks through one keypoint)
-    # stops the dg method's collocation ("coincident control points"): keep the first
-    seen: set[tuple[str, str, str]] = set()
-    unique = []
-    for r in matched:
-        key = (r["image"], r["row"], r["col"])
-        if key not in seen:
-            seen.add(key)
-            unique.append(r)
-    dropped = len(matched) - len(unique)
-    if dropped:
-        print(f"matched CSV: {dropped} measurement(s) at an image position another tie point "
-              "also has (two tracks through one keypoint): dropped", flush=True)
+    unique = matched  # one tie point per image position since d0661d1 (tracks.py)
     count: dict[str, int] = {}
     for r in unique:
         count[r["id"]] = count.get(r["id"], 0) + 1
