@@ -113,34 +113,20 @@ class Geoid:
             NaN for non-finite input and outside a regional grid.
         """
         lon, lat = broadcast_float64(lon=lon, lat=lat)
-        rows, cols = self._nodes.shape
-        out = np.full(lon.shape, np.nan)
-        ok = np.isfinite(lon) & np.isfinite(lat)
-        x = (lon[ok] - self._lon0) / self._dlon
-        y = (lat[ok] - self._lat0) / self._dlat
-        if self._global:
-            x = np.mod(x, cols)
-        inside = (y >= 0) & (y <= rows - 1)
-        if not self._global:
-            inside &= (x >= 0) & (x <= cols - 1)
-        x, y = x[inside], y[inside]
-        i0 = np.minimum(np.floor(y).astype(np.intp), rows - 2)
-        ty = y - i0
-        if self._global:
-            j0 = np.floor(x).astype(np.intp) % cols
-            j1 = (j0 + 1) % cols
-            tx = x - np.floor(x)
-        else:
-            j0 = np.minimum(np.floor(x).astype(np.intp), cols - 2)
-            j1 = j0 + 1
-            tx = x - j0
-        g = self._nodes
-        val = ((1 - ty) * ((1 - tx) * g[i0, j0] + tx * g[i0, j1])
-               + ty * ((1 - tx) * g[i0 + 1, j0] + tx * g[i0 + 1, j1]))
-        sub = np.full(inside.shape, np.nan)
-        sub[inside] = val
-        out[ok] = sub
-        return out
+        return _undulation_nodes(self._nodes, self.header, lon, lat)
+
+    @property
+    def header(self) -> np.ndarray:
+        """(5,) ``lat0, lon0, dlat, dlon, global`` (degrees; ``global`` 1.0 when the grid
+        wraps around the Earth) of :attr:`nodes`: for compiled kernels."""
+        return np.array([self._lat0, self._lon0, self._dlat, self._dlon,
+                         1.0 if self._global else 0.0])
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """(rows, cols) undulations at the grid nodes, metres (NaN for none; read-only),
+        row 0 at ``lat0``."""
+        return self._nodes
 
     def undulation_range(self, bounds: Bounds) -> tuple[float, float]:
         """``(min, max)`` of ``N`` over ``(west, south, east, north)`` degrees, metres.
@@ -180,6 +166,40 @@ class Geoid:
 
     def __repr__(self) -> str:
         return f"Geoid({self._path!r})"
+
+
+def _undulation_nodes(nodes: np.ndarray, header: np.ndarray, lon: np.ndarray,
+                      lat: np.ndarray) -> np.ndarray:
+    """:meth:`Geoid.undulation` from the grid's nodes and :attr:`Geoid.header`."""
+    lat0, lon0, dlat, dlon, glob = (float(v) for v in header)
+    rows, cols = nodes.shape
+    out = np.full(lon.shape, np.nan)
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    x = (lon[ok] - lon0) / dlon
+    y = (lat[ok] - lat0) / dlat
+    if glob:
+        x = np.mod(x, cols)
+    inside = (y >= 0) & (y <= rows - 1)
+    if not glob:
+        inside &= (x >= 0) & (x <= cols - 1)
+    x, y = x[inside], y[inside]
+    i0 = np.minimum(np.floor(y).astype(np.intp), rows - 2)
+    ty = y - i0
+    if glob:
+        j0 = np.floor(x).astype(np.intp) % cols
+        j1 = (j0 + 1) % cols
+        tx = x - np.floor(x)
+    else:
+        j0 = np.minimum(np.floor(x).astype(np.intp), cols - 2)
+        j1 = j0 + 1
+        tx = x - j0
+    g = nodes
+    val = ((1 - ty) * ((1 - tx) * g[i0, j0] + tx * g[i0, j1])
+           + ty * ((1 - tx) * g[i0 + 1, j0] + tx * g[i0 + 1, j1]))
+    sub = np.full(inside.shape, np.nan)
+    sub[inside] = val
+    out[ok] = sub
+    return out
 
 
 def geoid_search_path() -> list[Path]:

@@ -26,6 +26,15 @@ Two methods, both generic (they only call ``model.backproject_with_status`` and
        the bracket itself is shorter than ``tolerance_m`` along the ray (a vertical step of a
        nearest-neighbour DEM).
 
+    *Fast path.* When the DEM offers a window for the compiled scan (a
+    :class:`~geoblock.dem.RasterDem` in a geographic CRS, not ``nearest``), steps 3 and 4 run
+    first on approximate rays (:mod:`geoblock.dem._raycast`: the quadratic through three
+    exact positions, its error bounded by a fourth, the DEM's geoid-corrected posts with a
+    bound on the slope), at the same levels; only the levels it cannot decide for sure are
+    scanned on the exact ray, and its roots are checked (and, if need be, refined) on the
+    exact ray. Same statuses, same first crossing, same tolerance (``_FAST_SCAN = False``
+    runs the exact scan alone: the reference path).
+
 ``"ray-tracing"``: the papers' iteration (Chen & Lee 1993; Teo et al. 2010, Fig. 2a):
     ``Z0 -> (lon, lat) = backproject(Z) -> Z' = dem(lon, lat) -> ...`` until
     ``|Z' - Z| <= tolerance_m``. It converges only where the terrain slope along the ray times
@@ -44,6 +53,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoblock._array import broadcast_float64, warn_status
+from geoblock.dem import _raycast as raycast
+from geoblock.dem._raycast import RayWindow
 from geoblock.dem.base import DemBase
 from geoblock.dem.filled import FilledDem
 from geoblock.dem.protocol import Bounds, DemSource
@@ -73,6 +84,13 @@ _Result = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 #: per point: class, reason, a, f(a), b, f(b), lon and lat at b (what the scan returns)
 _Scan = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
               np.ndarray, np.ndarray]
+
+#: scan approximate rays first when the DEM offers a window (:mod:`geoblock.dem._raycast`);
+#: False: the exact numpy scan alone (the reference path; tests and benchmarks)
+_FAST_SCAN = True
+
+#: points of the first guess of the scanned height range (then confirmed on all the points)
+_RANGE_GUESS_POINTS = 2048
 
 #: metres per degree of latitude (spherical approximation, for step sizes only)
 _M_PER_DEG = math.radians(1.0) * 6378137.0
@@ -308,9 +326,11 @@ def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float) -> Bounds 
     if not good.any():
         return None
     lon, lat = lon[good], lat[good]
-    rad = np.radians(lon)
-    ref = math.degrees(math.atan2(float(np.mean(np.sin(rad))), float(np.mean(np.cos(rad)))))
-    lon = ref + (lon - ref + 180.0) % 360.0 - 180.0
+    if not (lon.min() >= -180.0 and lon.max() <= 180.0 and lon.max() - lon.min() < 90.0):
+        rad = np.radians(lon)
+        ref = math.degrees(math.atan2(float(np.mean(np.sin(rad))),
+                                      float(np.mean(np.cos(rad)))))
+        lon = ref + (lon - ref + 180.0) % 360.0 - 180.0
     pad_lat = pad_m / _M_PER_DEG
     pad_lon = pad_lat / max(math.cos(math.radians(float(np.max(np.abs(lat))))), 1e-6)
     return (float(lon.min() - pad_lon), float(lat.min() - pad_lat),
@@ -319,42 +339,72 @@ def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float) -> Bounds 
 
 def _scan_range(ev: _Evaluator, row: np.ndarray, col: np.ndarray) -> tuple[float, float] | None:
     """``(bottom, top)`` heights that contain the terrain under all the rays, or None."""
+    return _scan_range_nodes(ev, row, col)[0]
+
+
+#: the rays' ground positions at two heights: ``(h_lo, h_hi, lon_lo, lat_lo, status_lo,
+#: lon_hi, lat_hi, status_hi)``
+_Nodes = tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+               np.ndarray]
+
+
+def _scan_range_nodes(ev: _Evaluator, row: np.ndarray,
+                      col: np.ndarray) -> tuple[tuple[float, float] | None, _Nodes | None]:
+    """:func:`_scan_range`, and the last backprojections it made (at two heights)."""
     pad = 2.0 * _resolution(ev.dem) + 1.0
     lo, hi = (float(v) for v in ev.model.height_range)
     result = None
-    for _ in range(4):
-        hs = np.concatenate([np.full(row.size, lo), np.full(row.size, hi)])
-        lon, lat, _ = ev.ground(np.tile(row, 2), np.tile(col, 2), hs)
-        box = _bbox([(lon, lat)], pad)
+    nodes = None
+    n = row.size
+    # the first pass on a subset of the points when there are many (the range is only a
+    # guess until a pass over all the points confirms it: the loop ends only on those)
+    sub = np.arange(0, n, max(1, n // _RANGE_GUESS_POINTS)) if n > 4 * _RANGE_GUESS_POINTS \
+        else None
+    for it in range(5):
+        pick = sub if (it == 0 and sub is not None) else None
+        r_, c_ = (row, col) if pick is None else (row[pick], col[pick])
+        lon_lo, lat_lo, st_lo = ev.ground(r_, c_, np.full(r_.size, lo))
+        lon_hi, lat_hi, st_hi = ev.ground(r_, c_, np.full(r_.size, hi))
+        if pick is None:
+            nodes = (lo, hi, lon_lo, lat_lo, st_lo, lon_hi, lat_hi, st_hi)
+        box = _bbox([(lon_lo, lat_lo), (lon_hi, lat_hi)], pad)
         zmin, zmax = ev.height_range(box)
         if not (math.isfinite(zmin) and math.isfinite(zmax)):
-            return result
-        margin = 1.0 + 0.1 * (zmax - zmin)
+            if pick is not None:
+                continue  # the subset saw no DEM: ask all the points
+            return result, nodes
+        # (a guess from the subset gets twice the margin: the full box is a little larger)
+        margin = (1.0 + 0.1 * (zmax - zmin)) * (1.0 if pick is None else 2.0)
         result = (zmin - margin, zmax + margin)
-        if box is not None and result[0] >= lo and result[1] <= hi:
+        if pick is None and box is not None and result[0] >= lo and result[1] <= hi:
             break
         lo, hi = result
-    return result
+    return result, nodes
 
 
 def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_iter: int,
-            max_levels: int, max_evaluations: int) -> _Result:
+            max_levels: int, max_evaluations: int, fast: bool | None = None) -> _Result:
     n = row.size
     lon = np.full(n, np.nan)
     lat = np.full(n, np.nan)
     h = np.full(n, np.nan)
-    rng = _scan_range(ev, row, col)
+    rng, nodes = _scan_range_nodes(ev, row, col)
     if rng is None:
         return lon, lat, h, np.full(n, _NO_DEM, np.uint8)
     bottom, top = rng
     status = np.full(n, _NO_INTERSECTION, np.uint8)
 
-    # horizontal metres per metre of height, from the rays at the ends of the range
-    lo_lon, lo_lat, _ = ev.ground(row, col, np.full(n, bottom))
-    hi_lon, hi_lat, _ = ev.ground(row, col, np.full(n, top))
+    # the rays at the ends of the range (the scan range's own nodes when they contain it)
+    if nodes is not None and nodes[0] <= bottom and nodes[1] >= top:
+        h_lo, h_hi, lo_lon, lo_lat, lo_st, hi_lon, hi_lat, hi_st = nodes
+    else:
+        h_lo, h_hi = bottom, top
+        lo_lon, lo_lat, lo_st = ev.ground(row, col, np.full(n, bottom))
+        hi_lon, hi_lat, hi_st = ev.ground(row, col, np.full(n, top))
+    # horizontal metres per metre of height
     dy = (hi_lat - lo_lat) * _M_PER_DEG
     dx = ((hi_lon - lo_lon + 180.0) % 360.0 - 180.0) * _M_PER_DEG * np.cos(np.radians(lo_lat))
-    k = np.hypot(dx, dy) / (top - bottom)
+    k = np.hypot(dx, dy) / (h_hi - h_lo)
     if not np.isfinite(k).any():
         k[:] = 1.0  # no ray known at both ends: half a post per metre of height
     k = np.where(np.isfinite(k), k, np.nanmax(k))
@@ -367,26 +417,155 @@ def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_it
     along = np.sqrt(1.0 + k * k)  # metres along the ray per metre of height
 
     tops = np.full(n, top)
-    outcome = _scan(ev, row, col, tops, np.full(n, bottom), step, nlev, max_evaluations)
-    # rays whose top sample is already below the terrain: scan once more above the range
-    redo = np.flatnonzero(outcome[0] == _START)
-    if redo.size:
-        extra = _scan(ev, row[redo], col[redo], np.full(redo.size, top + span),
-                      np.full(redo.size, top), step[redo],
-                      np.ceil(span / step[redo] - 1e-9).astype(np.int64), max_evaluations)
-        for arr, new in zip(outcome, extra, strict=True):
-            arr[redo] = new
-    cls, reason, a, fa, b, fb, b_lon, b_lat = outcome
-    status[:] = np.where(cls == _NEG, _OK, np.where(cls == _START, _NO_INTERSECTION, reason))
-    status[(cls == _POS)] = _NO_INTERSECTION
+    bottoms = np.full(n, bottom)
+    # per point: the level the exact scan starts at (-1: resolved without it)
+    start = np.zeros(n, np.int64)
+    cls = np.full(n, _UNK, np.int8)
+    reason = np.full(n, _NO_DEM, np.uint8)
+    a = np.full(n, np.nan)
+    fa = np.full(n, np.nan)
+    b = np.full(n, np.nan)
+    fb = np.full(n, np.nan)
+    b_lon = np.full(n, np.nan)
+    b_lat = np.full(n, np.nan)
+    if _FAST_SCAN if fast is None else fast:
+        window = _ray_window(ev, (lo_lon, lo_lat, hi_lon, hi_lat), res)
+        if window is not None:
+            ends = (h_lo, h_hi, lo_lon, lo_lat, lo_st, hi_lon, hi_lat, hi_st)
+            fast_out = _fast_scan(ev, row, col, window, ends, tops, bottoms, step, nlev,
+                                  along, tol, max_iter)
+            start, done, f_lon, f_lat, f_h = fast_out[:5]
+            lon[done], lat[done], h[done] = f_lon[done], f_lat[done], f_h[done]
+            status[done] = _OK
+            neg = fast_out[5]  # certain brackets to refine on the exact ray
+            for arr, new in zip((cls, reason, a, fa, b, fb, b_lon, b_lat), fast_out[6:],
+                                strict=True):
+                arr[neg] = new[neg]
+            status[start == _NONE_LEFT] = _NO_INTERSECTION
+    scan = np.flatnonzero(start >= 0)
+    if scan.size:
+        j0 = start[scan]
+        s_top = np.where(j0 > 0, tops[scan] - j0 * step[scan], tops[scan])
+        outcome = _scan(ev, row[scan], col[scan], s_top, bottoms[scan], step[scan],
+                        nlev[scan] - j0, max_evaluations)
+        # rays whose top sample is already below the terrain: scan once more above the range
+        redo = np.flatnonzero((outcome[0] == _START) & (j0 == 0))
+        if redo.size:
+            pts = scan[redo]
+            extra = _scan(ev, row[pts], col[pts], np.full(redo.size, top + span),
+                          np.full(redo.size, top), step[pts],
+                          np.ceil(span / step[pts] - 1e-9).astype(np.int64), max_evaluations)
+            for arr, new in zip(outcome, extra, strict=True):
+                arr[redo] = new
+        for arr, new in zip((cls, reason, a, fa, b, fb, b_lon, b_lat), outcome, strict=True):
+            arr[scan] = new
+        sc = outcome[0]
+        status[scan] = np.where(sc == _NEG, _OK,
+                                np.where((sc == _START) | (sc == _POS), _NO_INTERSECTION,
+                                         outcome[1]))
     exact = (cls == _NEG) & (fb == 0.0)
     lon[exact], lat[exact], h[exact] = b_lon[exact], b_lat[exact], b[exact]
+    status[exact] = _OK
     todo = np.flatnonzero((cls == _NEG) & ~exact)
     if todo.size:
         res_ = _illinois(ev, row[todo], col[todo], a[todo], fa[todo], b[todo], fb[todo],
                          b_lon[todo], b_lat[todo], along[todo], tol, max_iter)
         lon[todo], lat[todo], h[todo], status[todo] = res_
     return lon, lat, h, status
+
+
+#: :func:`_fast_scan`'s ``start`` for points it resolved (or found above the terrain)
+_RESOLVED, _NONE_LEFT = -1, -2
+
+
+def _ray_window(ev: _Evaluator, ends: tuple[np.ndarray, ...], res: float) -> RayWindow | None:
+    """The DEM's window for the compiled scan over the rays' footprint, when it offers one."""
+    get = getattr(ev.dem, "_ray_window", None)
+    if get is None or res <= 0:
+        return None
+    lo_lon, lo_lat, hi_lon, hi_lat = ends
+    box = _bbox([(lo_lon, lo_lat), (hi_lon, hi_lat)], 2.0 * res + 1.0)
+    if box is None:
+        return None
+    window = get(box)
+    return window if isinstance(window, RayWindow) else None
+
+
+def _fast_scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, window: RayWindow,
+               ends: _Nodes, tops: np.ndarray, bottoms: np.ndarray, step: np.ndarray,
+               nlev: np.ndarray, along: np.ndarray, tol: float,
+               max_iter: int) -> tuple[np.ndarray, ...]:
+    """The scan on approximate rays (:mod:`geoblock.dem._raycast`), checked on the exact ray.
+
+    Returns ``start`` (per point: the level the exact scan must start at, ``_RESOLVED`` when
+    done here, ``_NONE_LEFT`` when the ray is certainly above the terrain over the range),
+    ``done`` and the converged ``lon, lat, h``, then ``neg`` (certain brackets still to refine
+    on the exact ray) with the scan's outcome arrays for them.
+    """
+    n = row.size
+    h_lo, h_hi, lo_lon, lo_lat, lo_st, hi_lon, hi_lat, hi_st = ends
+    h_mid = 0.5 * (h_lo + h_hi)
+    h_q = h_lo + 0.25 * (h_hi - h_lo)
+    lon4 = np.empty((4, n))
+    lat4 = np.empty((4, n))
+    lon4[0], lat4[0], lon4[2], lat4[2] = lo_lon, lo_lat, hi_lon, hi_lat
+    lon4[1], lat4[1], mid_st = ev.ground(row, col, np.full(n, h_mid))
+    lon4[3], lat4[3], q_st = ev.ground(row, col, np.full(n, h_q))
+    known = (lo_st == _OK) & (hi_st == _OK) & (mid_st == _OK) & (q_st == _OK)
+    start = np.zeros(n, np.int64)
+    done = np.zeros(n, bool)
+    f_lon = np.full(n, np.nan)
+    f_lat = np.full(n, np.nan)
+    f_h = np.full(n, np.nan)
+    neg = np.zeros(n, bool)
+    outs = [np.full(n, _UNK, np.int8), np.full(n, _NO_DEM, np.uint8)] + [
+        np.full(n, np.nan) for _ in range(6)]
+    idx = np.arange(n)
+    outcome, level, root, droot, refined = raycast.scan(
+        window, np.array([h_lo, h_mid, h_hi, h_q]), lon4, lat4, known, tops, bottoms, step,
+        nlev, 0.1 * tol, max_iter)
+    # certainly above the terrain everywhere: no intersection (as the exact scan's _POS)
+    start[outcome == raycast.NONE] = _NONE_LEFT
+    # not sure from the level before the first doubtful one: the exact scan goes on there
+    unsure = outcome == raycast.UNSURE
+    start[idx[unsure]] = np.maximum(level[unsure] - 1, 0)
+    # certain brackets: the exact ray at the approximate root, accepted when within tolerance
+    br = np.flatnonzero(outcome == raycast.BRACKET)
+    pts = idx[br]
+    start[pts] = _RESOLVED
+    x = root[br]
+    good_root = np.isfinite(x) & (refined[br] == raycast.REFINED)
+    x_eval = np.where(good_root, x, 0.5 * (tops[pts] + bottoms[pts]))
+    x_lon, x_lat, reason = ev.ground(row[pts], col[pts], x_eval)
+    fx = x_eval - raycast.heights(window, x_lon, x_lat)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dist = np.abs(fx) / droot[br] * along[pts]
+    accept = (good_root & (reason == _OK) & (droot[br] > 0) & np.isfinite(fx)
+              & (((np.abs(fx) <= tol) & (dist <= tol)) | (fx == 0)))
+    acc = pts[accept]
+    done[acc] = True
+    f_lon[acc], f_lat[acc], f_h[acc] = x_lon[accept], x_lat[accept], x_eval[accept]
+    # the others: the exact Illinois in the certain bracket (levels j - 1 and j)
+    rest = ~accept
+    if rest.any():
+        rp = pts[rest]
+        j = level[br][rest]
+        ha = tops[rp] - (j - 1) * step[rp]
+        hb = np.where(j >= nlev[rp], bottoms[rp], tops[rp] - j * step[rp])
+        m = rp.size
+        e_lon, e_lat, e_f, e_reason = ev(np.tile(row[rp], 2), np.tile(col[rp], 2),
+                                         np.concatenate([ha, hb]))
+        sure = (e_reason[:m] == _OK) & (e_reason[m:] == _OK) & (e_f[:m] > 0) & (e_f[m:] <= 0)
+        # a bracket the exact ray does not confirm (cannot happen within the bounds): rescan
+        start[rp[~sure]] = np.maximum(j[~sure] - 1, 0)
+        sp = rp[sure]
+        neg[sp] = True
+        outs[0][sp] = _NEG
+        outs[1][sp] = _OK
+        outs[2][sp], outs[3][sp] = ha[sure], e_f[:m][sure]
+        outs[4][sp], outs[5][sp] = hb[sure], e_f[m:][sure]
+        outs[6][sp], outs[7][sp] = e_lon[m:][sure], e_lat[m:][sure]
+    return (start, done, f_lon, f_lat, f_h, neg, *outs)
 
 
 def _scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, top: np.ndarray,

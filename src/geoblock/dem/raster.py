@@ -51,6 +51,7 @@ from affine import Affine
 from geoblock import coords
 from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
+from geoblock.dem._raycast import RayWindow
 from geoblock.dem.base import DemBase
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
@@ -88,6 +89,8 @@ _WINDOW_POSTS_PER_POINT = 2.0
 _BLOCK = 512
 _WHOLE = 2048  # rasters up to this size (both sides) are one block
 _STRIP_PIXELS = 1 << 22  # pixels per read when scanning a window for statistics
+#: largest window (posts) :meth:`RasterDem._ray_window` assembles for the compiled scan
+_RAY_WINDOW_POSTS = 1 << 24
 
 
 # ---------------------------------------------------------------------------- block cache
@@ -329,6 +332,7 @@ class RasterDem(DemBase):
         self._store_dtype = np.dtype(np.float64 if self._dtype == np.float64 else np.float32)
         self._cache_key = (*identity, self._band, str(self._nodata_policy), self._fill_distance)
         self._inverse = np.array(tuple(~self._transform)[:6], dtype=np.float64)
+        self._ray_windows: dict[tuple[int, int, int, int], RayWindow] = {}
 
     # ------------------------------------------------------------------ properties
     @property
@@ -564,34 +568,17 @@ class RasterDem(DemBase):
             wrapped = west + (x - west) % 360.0
             x_lo, x_hi, _, _ = finite_bounds(wrapped, y)
         rows, cols = self._shape
-        b, h = self._block, _HALO
         cc, rr = affine_apply(~self._transform, np.array([x_lo, x_lo, x_hi, x_hi]),
                               np.array([y_lo, y_hi, y_lo, y_hi]))
         r_lo = min(max(math.floor(float(np.min(rr))) - 2, 0), rows - 1)
         r_hi = min(max(math.floor(float(np.max(rr))) + 1, 0), rows - 1)
         c_lo = min(max(math.floor(float(np.min(cc))) - 2, 0), cols - 1)
         c_hi = min(max(math.floor(float(np.max(cc))) + 1, 0), cols - 1)
-        kr0, kr1 = r_lo // b, r_hi // b
-        kc0, kc1 = c_lo // b, c_hi // b
-        if kr0 == kr1 and kc0 == kc1:
-            window = self._get_block(kr0, kc0)
-            off_r, off_c = kr0 * b - h, kc0 * b - h
-        else:
-            # rows/cols [r0, r1) x [c0, c1) of the raster edge-padded by the halo, copied from
-            # the blocks (each is that padded raster around its core: overlaps agree)
-            off_r, r1 = r_lo - h, r_hi + h + 1
-            off_c, c1 = c_lo - h, c_hi + h + 1
-            if (r1 - off_r) * (c1 - off_c) > _WINDOW_POSTS_PER_POINT * x.size + 65536:
-                return None
-            window = np.empty((r1 - off_r, c1 - off_c), dtype=self._store_dtype)
-            for kr in range(kr0, kr1 + 1):
-                for kc in range(kc0, kc1 + 1):
-                    block = self._get_block(kr, kc)
-                    br, bc = kr * b - h, kc * b - h  # the block's origin
-                    a0, a1 = max(off_r, br), min(r1, br + b + 2 * h)
-                    e0, e1 = max(off_c, bc), min(c1, bc + b + 2 * h)
-                    window[a0 - off_r:a1 - off_r, e0 - off_c:e1 - off_c] = \
-                        block[a0 - br:a1 - br, e0 - bc:e1 - bc]
+        found = self._posts_window(r_lo, r_hi, c_lo, c_hi,
+                                   _WINDOW_POSTS_PER_POINT * x.size + 65536)
+        if found is None:
+            return None
+        window, off_r, off_c = found
         out = np.empty(x.size)
         outside = np.empty(x.size, dtype=np.bool_)
         _nb_sample_window(x, y, self._inverse, bool(self._lonlat), west, rows, cols, n, window,
@@ -606,6 +593,105 @@ class RasterDem(DemBase):
             else:
                 heights += self._geoid.undulation(lon, lat)
         return heights, missed
+
+    def _posts_window(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int,
+                      max_posts: float) -> tuple[np.ndarray, int, int] | None:
+        """The cached posts of raster rows ``r_lo..r_hi``, columns ``c_lo..c_hi`` (inside the
+        raster) and the halo around them, as one array, with the raster pixel of its first
+        post: one cached block as is, several assembled (None beyond ``max_posts``)."""
+        b, h = self._block, _HALO
+        kr0, kr1 = r_lo // b, r_hi // b
+        kc0, kc1 = c_lo // b, c_hi // b
+        if kr0 == kr1 and kc0 == kc1:
+            return self._get_block(kr0, kc0), kr0 * b - h, kc0 * b - h
+        # rows/cols [r0, r1) x [c0, c1) of the raster edge-padded by the halo, copied from
+        # the blocks (each is that padded raster around its core: overlaps agree)
+        off_r, r1 = r_lo - h, r_hi + h + 1
+        off_c, c1 = c_lo - h, c_hi + h + 1
+        if (r1 - off_r) * (c1 - off_c) > max_posts:
+            return None
+        window = np.empty((r1 - off_r, c1 - off_c), dtype=self._store_dtype)
+        for kr in range(kr0, kr1 + 1):
+            for kc in range(kc0, kc1 + 1):
+                block = self._get_block(kr, kc)
+                br, bc = kr * b - h, kc * b - h  # the block's origin
+                a0, a1 = max(off_r, br), min(r1, br + b + 2 * h)
+                e0, e1 = max(off_c, bc), min(c1, bc + b + 2 * h)
+                window[a0 - off_r:a1 - off_r, e0 - off_c:e1 - off_c] = \
+                    block[a0 - br:a1 - br, e0 - bc:e1 - bc]
+        return window, off_r, off_c
+
+    def _ray_window(self, bounds: Bounds) -> RayWindow | None:
+        """The posts over a lon/lat box for :func:`geoblock.dem.raycast.scan`, with the
+        geoid grid and a bound on the surface's gradient; None when this DEM is not in a
+        geographic CRS, samples ``nearest`` (its surface is not continuous), the box is
+        larger than :data:`_RAY_WINDOW_POSTS` posts, or a regional geoid has holes."""
+        if not self._lonlat or self._interpolation == "nearest" or self._strict:
+            return None
+        geoid = self._geoid
+        if geoid is not None and not np.isfinite(geoid.nodes).all():
+            return None
+        window = self._window(bounds)
+        if window is None:
+            return None
+        r0, r1, c0, c1 = window
+        rows, cols = self._shape
+        r_lo, r_hi = min(max(r0 - 1, 0), rows - 1), min(max(r1, 0), rows - 1)
+        c_lo, c_hi = min(max(c0 - 1, 0), cols - 1), min(max(c1, 0), cols - 1)
+        key = (r_lo, r_hi, c_lo, c_hi)
+        cached = self._ray_windows.get(key)
+        if cached is not None:
+            return cached
+        found = self._posts_window(r_lo, r_hi, c_lo, c_hi, _RAY_WINDOW_POSTS)
+        if found is None:
+            return None
+        posts, off_r, off_c = found
+        # only the part over the box (a whole-raster block can be much larger)
+        a0, a1 = r_lo - _HALO - off_r, r_hi + _HALO + 1 - off_r
+        e0, e1 = c_lo - _HALO - off_c, c_hi + _HALO + 1 - off_c
+        posts = posts[max(a0, 0):a1, max(e0, 0):e1]
+        off_r, off_c = off_r + max(a0, 0), off_c + max(e0, 0)
+        # the gradient bound: neighbour differences over the post spacing (bilinear: the
+        # surface's slope is at most the sum of the two; bicubic overshoots: twice that)
+        t = self._transform
+        lat_max = max(abs(float(t.f)), abs(float(t.f + rows * t.e)))
+        m_lat = abs(float(t.e)) * np.radians(1.0) * coords.WGS84_A
+        m_lon = abs(float(t.a)) * np.radians(1.0) * coords.WGS84_A * max(
+            math.cos(math.radians(min(lat_max, 89.9))), 1e-6)
+        g_r, g_c = _max_step(posts, 0), _max_step(posts, 1)
+        slope = (g_r / m_lat + g_c / m_lon) * (1.0 if self._interpolation == "bilinear" else 2.0)
+        slope += 1e-3  # the geoid's own slope (EGM96: below 1e-4)
+        has_voids = not bool(np.isfinite(posts).all())
+        # geoid-corrected posts (N at each post centre) for the scan, and a bound on how far
+        # their interpolation is from the heights with N at the point: none where N is
+        # bilinear over a DEM cell, a quarter of the kink in N's slope across a geoid grid
+        # line times the cell size where one crosses it
+        corrected = np.asarray(posts, np.float64)
+        geoid_err = 0.0
+        if geoid is not None:
+            pr = np.arange(posts.shape[0]) + off_r + PIXEL_CENTRE
+            pc = np.arange(posts.shape[1]) + off_c + PIXEL_CENTRE
+            p_lon = float(t.c) + pc * float(t.a)
+            p_lat = float(t.f) + pr * float(t.e)
+            und = geoid.undulation(*np.meshgrid(p_lon, p_lat))
+            corrected = corrected + und
+            # N's slope over the window (it is piecewise bilinear: its differences between
+            # neighbouring posts bound it, with 10 % for a kink between two posts)
+            g_lat = _max_step(und, 0) / m_lat
+            g_lon = _max_step(und, 1) / m_lon
+            geoid_err = 1.1 * (g_lat + g_lon) * max(m_lat, m_lon) + 1e-9
+        out = RayWindow(
+            posts=posts, off_r=float(off_r), off_c=float(off_c), inverse=self._inverse,
+            west=float(t.c), rows=rows, cols=cols,
+            taps=2 if self._interpolation == "bilinear" else 4,
+            geoid=geoid.nodes if geoid is not None else np.empty((0, 0)),
+            geoid_header=geoid.header if geoid is not None else np.zeros(5),
+            slope=slope, post_m=min(m_lat, m_lon), has_voids=has_voids,
+            corrected=np.ascontiguousarray(corrected), geoid_err=geoid_err)
+        if len(self._ray_windows) >= 2:
+            self._ray_windows.clear()
+        self._ray_windows[key] = out
+        return out
 
     def _get_block(self, kr: int, kc: int) -> np.ndarray:
         return BLOCK_CACHE.get((*self._cache_key, kr, kc), lambda: self._load_block(kr, kc))
@@ -896,6 +982,13 @@ class ArrayDem(RasterDem):
 def _rebuild_array_dem(heights: np.ndarray, state: dict[str, Any]) -> ArrayDem:
     opts = {k: v for k, v in state.items() if k not in ("dem", "transform", "crs")}
     return ArrayDem(heights, state["transform"], state["crs"], **opts)
+
+
+def _max_step(array: np.ndarray, axis: int) -> float:
+    """Largest ``|difference|`` between neighbours along ``axis`` (NaN ignored; 0 if none)."""
+    with np.errstate(invalid="ignore"):
+        d = np.abs(np.diff(array, axis=axis))
+    return float(np.nanmax(d)) if np.isfinite(d).any() else 0.0
 
 
 def _digest(array: np.ndarray) -> str:
