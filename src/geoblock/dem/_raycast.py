@@ -40,7 +40,7 @@ import numpy as np
 
 from geoblock.pixels import PIXEL_CENTRE
 
-__all__ = ["RayWindow", "heights", "lagrange3", "scan", "scan_reference"]
+__all__ = ["RayWindow", "box", "heights", "lagrange3", "scan", "scan_reference"]
 
 #: outcome codes of :func:`scan`, per point
 NONE = 0  #: every level certainly above the terrain (no crossing in the range)
@@ -109,10 +109,12 @@ class RayWindow:
 
 def lagrange3(h0: float, h1: float, h2: float,
               h: np.ndarray | float) -> tuple[Any, Any, Any]:
-    """Lagrange weights of the nodes ``h0, h1, h2`` at ``h`` (numpy)."""
-    w0 = (h - h1) * (h - h2) / ((h0 - h1) * (h0 - h2))
-    w1 = (h - h0) * (h - h2) / ((h1 - h0) * (h1 - h2))
-    w2 = (h - h0) * (h - h1) / ((h2 - h0) * (h2 - h1))
+    """Lagrange weights of the nodes ``h0, h1, h2`` at ``h`` (numpy; as the kernel computes
+    them)."""
+    d01, d02, d12 = h0 - h1, h0 - h2, h1 - h2
+    w0 = (h - h1) * (h - h2) * (1.0 / (d01 * d02))
+    w1 = (h - h0) * (h - h2) * (1.0 / (-d01 * d12))
+    w2 = (h - h0) * (h - h1) * (1.0 / (d02 * d12))
     return w0, w1, w2
 
 
@@ -274,6 +276,7 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
     """See :func:`scan`."""
     h0, h1, h2, hq = nodes[0], nodes[1], nodes[2], nodes[3]
     d01, d02, d12 = h0 - h1, h0 - h2, h1 - h2
+    i0, i1, i2 = 1.0 / (d01 * d02), 1.0 / (-d01 * d12), 1.0 / (d02 * d12)
     m_per_deg = math.radians(1.0) * 6378137.0
     for i in numba.prange(top.size):
         outcome[i] = INELIGIBLE
@@ -289,9 +292,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
         lo2 = lo1 + ((lon4[2, i] - lo1 + 180.0) % 360.0 - 180.0)
         loq = lo1 + ((lon4[3, i] - lo1 + 180.0) % 360.0 - 180.0)
         la0, la1, la2, laq = lat4[0, i], lat4[1, i], lat4[2, i], lat4[3, i]
-        w0 = (hq - h1) * (hq - h2) / (d01 * d02)
-        w1 = (hq - h0) * (hq - h2) / (-d01 * d12)
-        w2 = (hq - h0) * (hq - h1) / (d02 * d12)
+        w0 = (hq - h1) * (hq - h2) * i0
+        w1 = (hq - h0) * (hq - h2) * i1
+        w2 = (hq - h0) * (hq - h1) * i2
         e_lon = (_approx(w0, w1, w2, lo0, lo1, lo2) - loq) * math.cos(math.radians(laq))
         e_lat = _approx(w0, w1, w2, la0, la1, la2) - laq
         # the quadratic's error at the quarter node, times 3 for the terms it does not show
@@ -305,9 +308,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
         h_up = np.nan
         for j in range(0, nlev[i] + 1):
             h = _level(top[i], bottom[i], step[i], nlev[i], j)
-            w0 = (h - h1) * (h - h2) / (d01 * d02)
-            w1 = (h - h0) * (h - h2) / (-d01 * d12)
-            w2 = (h - h0) * (h - h1) / (d02 * d12)
+            w0 = (h - h1) * (h - h2) * i0
+            w1 = (h - h0) * (h - h2) * i1
+            w2 = (h - h0) * (h - h1) * i2
             lon = _approx(w0, w1, w2, lo0, lo1, lo2)
             lat = _approx(w0, w1, w2, la0, la1, la2)
             z, certain = _height(posts, off_r, off_c, inv, west, rows, cols, n, g, hdr, lon,
@@ -331,9 +334,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
                 x = a - ga * (b - a) / (gb - ga)
                 if not (x < a and x > b):
                     x = 0.5 * (a + b)
-                w0 = (x - h1) * (x - h2) / (d01 * d02)
-                w1 = (x - h0) * (x - h2) / (-d01 * d12)
-                w2 = (x - h0) * (x - h1) / (d02 * d12)
+                w0 = (x - h1) * (x - h2) * i0
+                w1 = (x - h0) * (x - h2) * i1
+                w2 = (x - h0) * (x - h1) * i2
                 zx, _c = _height(posts, off_r, off_c, inv, west, rows, cols, n, g, hdr,
                                  _approx(w0, w1, w2, lo0, lo1, lo2),
                                  _approx(w0, w1, w2, la0, la1, la2), 0.0, False)
@@ -385,6 +388,44 @@ def heights(window: RayWindow, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
                     window.west, window.rows, window.cols, window.taps, window.geoid,
                     window.geoid_header, out)
     return out
+
+
+@numba.njit(nogil=True, cache=True)
+def _nb_box(lon: np.ndarray, lat: np.ndarray, out: np.ndarray) -> int:  # pragma: no cover
+    """Min/max of ``lon`` and ``lat`` over the points where both are finite, into ``out``
+    (``lon_min, lon_max, lat_min, lat_max``); returns how many such points there are."""
+    count = 0
+    for i in range(lon.size):
+        x = lon[i]
+        y = lat[i]
+        if not (np.isfinite(x) and np.isfinite(y)):
+            continue
+        if count == 0:
+            out[0] = x
+            out[1] = x
+            out[2] = y
+            out[3] = y
+        else:
+            out[0] = min(out[0], x)
+            out[1] = max(out[1], x)
+            out[2] = min(out[2], y)
+            out[3] = max(out[3], y)
+        count += 1
+    return count
+
+
+def box(pairs: list[tuple[np.ndarray, np.ndarray]]) -> tuple[float, float, float, float] | None:
+    """``(lon_min, lon_max, lat_min, lat_max)`` of the points of ``pairs`` (lon, lat arrays)
+    where both coordinates are finite (compiled, one pass); None when there is none."""
+    acc: list[float] | None = None
+    for lon, lat in pairs:
+        out = np.empty(4)
+        if _nb_box(np.ascontiguousarray(lon, np.float64).reshape(-1),
+                   np.ascontiguousarray(lat, np.float64).reshape(-1), out):
+            vals = [float(v) for v in out]
+            acc = vals if acc is None else [min(acc[0], vals[0]), max(acc[1], vals[1]),
+                                            min(acc[2], vals[2]), max(acc[3], vals[3])]
+    return None if acc is None else (acc[0], acc[1], acc[2], acc[3])
 
 
 def scan(window: RayWindow, nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray,

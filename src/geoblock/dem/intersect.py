@@ -320,18 +320,21 @@ def _bbox(lon_lat: list[tuple[np.ndarray, np.ndarray]], pad_m: float) -> Bounds 
     not the whole band from -180 to 180; DEM sources wrap the longitudes of a box into their
     own range (:data:`geoblock.dem.Bounds`).
     """
+    pad_lat = pad_m / _M_PER_DEG
+    found = raycast.box(lon_lat)  # one compiled pass: the common case, no unwrapping needed
+    if found is None:
+        return None
+    w, e, s, n = found
+    if w >= -180.0 and e <= 180.0 and e - w < 90.0:
+        pad_lon = pad_lat / max(math.cos(math.radians(max(abs(s), abs(n)))), 1e-6)
+        return (w - pad_lon, s - pad_lat, e + pad_lon, n + pad_lat)
     lon = np.concatenate([p[0] for p in lon_lat])
     lat = np.concatenate([p[1] for p in lon_lat])
     good = np.isfinite(lon) & np.isfinite(lat)
-    if not good.any():
-        return None
     lon, lat = lon[good], lat[good]
-    if not (lon.min() >= -180.0 and lon.max() <= 180.0 and lon.max() - lon.min() < 90.0):
-        rad = np.radians(lon)
-        ref = math.degrees(math.atan2(float(np.mean(np.sin(rad))),
-                                      float(np.mean(np.cos(rad)))))
-        lon = ref + (lon - ref + 180.0) % 360.0 - 180.0
-    pad_lat = pad_m / _M_PER_DEG
+    rad = np.radians(lon)
+    ref = math.degrees(math.atan2(float(np.mean(np.sin(rad))), float(np.mean(np.cos(rad)))))
+    lon = ref + (lon - ref + 180.0) % 360.0 - 180.0
     pad_lon = pad_lat / max(math.cos(math.radians(float(np.max(np.abs(lat))))), 1e-6)
     return (float(lon.min() - pad_lon), float(lat.min() - pad_lat),
             float(lon.max() + pad_lon), float(lat.max() + pad_lat))
