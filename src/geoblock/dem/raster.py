@@ -90,7 +90,7 @@ _BLOCK = 512
 _WHOLE = 2048  # rasters up to this size (both sides) are one block
 _STRIP_PIXELS = 1 << 22  # pixels per read when scanning a window for statistics
 #: largest window (posts) :meth:`RasterDem._ray_window` assembles for the compiled scan
-_RAY_WINDOW_POSTS = 1 << 24
+_RAY_WINDOW_POSTS = 1 << 22
 
 
 # ---------------------------------------------------------------------------- block cache
