@@ -652,14 +652,16 @@ class RasterDem(DemBase):
         posts = posts[max(a0, 0):a1, max(e0, 0):e1]
         off_r, off_c = off_r + max(a0, 0), off_c + max(e0, 0)
         # the gradient bound: neighbour differences over the post spacing (bilinear: the
-        # surface's slope is at most the sum of the two; bicubic overshoots: twice that)
+        # surface's slope is at most the sum of the two; bicubic overshoots: 2.5 times that,
+        # its weights' absolute sums being 1.25 per axis on top of the 1-D kernel's slope)
         t = self._transform
         lat_max = max(abs(float(t.f)), abs(float(t.f + rows * t.e)))
         m_lat = abs(float(t.e)) * np.radians(1.0) * coords.WGS84_A
         m_lon = abs(float(t.a)) * np.radians(1.0) * coords.WGS84_A * max(
             math.cos(math.radians(min(lat_max, 89.9))), 1e-6)
         g_r, g_c = _max_step(posts, 0), _max_step(posts, 1)
-        slope = (g_r / m_lat + g_c / m_lon) * (1.0 if self._interpolation == "bilinear" else 2.0)
+        over = 1.0 if self._interpolation == "bilinear" else 2.5  # Keys' kernel overshoots
+        slope = (g_r / m_lat + g_c / m_lon) * over
         slope += 1e-3  # the geoid's own slope (EGM96: below 1e-4)
         has_voids = not bool(np.isfinite(posts).all())
         # geoid-corrected posts (N at each post centre) for the scan, and a bound on how far
@@ -679,7 +681,7 @@ class RasterDem(DemBase):
             # neighbouring posts bound it, with 10 % for a kink between two posts)
             g_lat = _max_step(und, 0) / m_lat
             g_lon = _max_step(und, 1) / m_lon
-            geoid_err = 1.1 * (g_lat + g_lon) * max(m_lat, m_lon) + 1e-9
+            geoid_err = 1.1 * over * (g_lat + g_lon) * max(m_lat, m_lon) + 1e-9
         out = RayWindow(
             posts=posts, off_r=float(off_r), off_c=float(off_c), inverse=self._inverse,
             west=float(t.c), rows=rows, cols=cols,
