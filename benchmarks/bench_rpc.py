@@ -1,6 +1,7 @@
 """RPC projection and localisation: geoblock against rpcm, rpcfast, shareloc and GDAL.
 
-Run: ``python benchmarks/bench_rpc.py [--points N] [--quick] [--rpc FILE] [--cold-jit]``.
+Run: ``python benchmarks/bench_rpc.py [--points N] [--quick] [--rpc FILE] [--cold-jit]
+[--rounds R] [--side-by-side-only]``.
 The peers are not geoblock dependencies: ``pip install -r benchmarks/requirements.txt``; a peer
 that cannot be imported, or fails on the data, gets a row "unavailable: <reason>".
 
@@ -20,6 +21,13 @@ vectors and GDAL's buffers are not seen), and accuracy:
 * localisation: each method's (lon, lat) projected back with geoblock's exact projection, the
   image residual max(|d row|, |d col|) in pixels, max and median; "failed" counts non-finite
   outputs and points a method flags as not converged.
+
+Then projection through the public APIs side by side (issue 30): geoblock
+``RpcModel.project_with_status`` and ``rpcfast.project`` on the same 10^6 points, on 1 thread
+and on 2 (``numba.set_num_threads``, both libraries share numba's pool), interleaved call by
+call (``--rounds`` rounds of geoblock 1, rpcfast 1, geoblock 2, rpcfast 2), each call's result
+kept until the next call of the same method has returned (as ``r = f(...)`` in a user's loop:
+fresh output pages fault in), min and median per method and the machine's load.
 
 Convention alignment (geoblock and RPC00B: (0, 0) is the centre of the first pixel):
 
@@ -43,6 +51,7 @@ import time
 import tracemalloc
 import types
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -237,6 +246,69 @@ def build_peers(rio_rpc, startup):
     return peers
 
 
+# ---------------------------------------------------------------------------------- side by side
+#: must-show of issue 30: geoblock's public projection >= 1.3x rpcfast's, on 1 thread and on 2
+TARGET_VS_RPCFAST = 1.3
+
+
+def side_by_side(
+    methods: dict[str, Callable[[], object]], thread_counts: list[int], rounds: int
+) -> dict[tuple[str, int], list[float]]:
+    """Interleaved timings: ``{(name, threads): [seconds, ...]}``.
+
+    Each round calls every method under every thread count once, in turn; a method's previous
+    result stays alive until its next call has returned (``r = f(...)`` in a loop), so every
+    call writes fresh output pages, as a user's does.
+    """
+    import numba
+
+    default = numba.get_num_threads()
+    times: dict[tuple[str, int], list[float]] = {(m, t): [] for m in methods for t in thread_counts}
+    held: dict[tuple[str, int], object] = {}
+    try:
+        for t in thread_counts:  # warm-up: compile or load, first pages
+            numba.set_num_threads(t)
+            for name, call in methods.items():
+                held[name, t] = call()
+        for _ in range(rounds):
+            for t in thread_counts:
+                numba.set_num_threads(t)
+                for name, call in methods.items():
+                    t0 = time.perf_counter()
+                    out = call()
+                    times[name, t].append(time.perf_counter() - t0)
+                    held[name, t] = out
+    finally:
+        numba.set_num_threads(default)
+    return times
+
+
+def print_side_by_side(
+    times: dict[tuple[str, int], list[float]], n: int, mine: str, peer: str
+) -> None:
+    """The table and the ratio ``peer time / geoblock time`` per thread count (min, median)."""
+    print(f"projection of {n} points through the public API, side by side "
+          f"(interleaved; load before {os.getloadavg()[0]:.2f})")
+    head = f"{'method':40s} {'threads':>7s} {'min ms':>8s} {'median ms':>9s} {'Mpts/s (min)':>12s}"
+    print(head)
+    print("-" * len(head))
+    for (name, t), ts in times.items():
+        if ts:
+            print(f"{name:40s} {t:7d} {1e3 * min(ts):8.2f} {1e3 * float(np.median(ts)):9.2f} "
+                  f"{n / min(ts) / 1e6:12.1f}")
+    threads = sorted({t for _, t in times})
+    for t in threads:
+        a, b = times.get((mine, t)), times.get((peer, t))
+        if not a or not b:
+            continue
+        r_min = min(b) / min(a)
+        r_med = float(np.median(b)) / float(np.median(a))
+        ok = min(r_min, r_med) >= TARGET_VS_RPCFAST
+        print(f"  {t} thread(s): geoblock / rpcfast = {r_min:.2f}x (min), {r_med:.2f}x (median) "
+              f"-> target >= {TARGET_VS_RPCFAST:g}x {'MET' if ok else 'NOT MET'}")
+    print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
+
+
 # ---------------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
@@ -253,6 +325,10 @@ def main(argv=None) -> int:
                         help="timed calls after the warm-up, best taken (default 3; short "
                         f"calls are repeated up to {MAX_REPEAT} times, {TIME_BUDGET_S:g} s)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--rounds", type=int, default=15,
+                        help="rounds of the side-by-side projection (default 15)")
+    parser.add_argument("--side-by-side-only", action="store_true",
+                        help="only the side-by-side projection against rpcfast (1 and 2 threads)")
     args = parser.parse_args(argv)
     n = args.points or (100_000 if args.quick else 1_000_000)
 
@@ -332,6 +408,21 @@ def main(argv=None) -> int:
     print()
 
     peers = build_peers(rio_rpc, startup)
+
+    # ---- projection side by side with rpcfast, 1 and 2 threads (issue 30's must-show)
+    methods = {"geoblock RpcModel.project_with_status":
+               lambda: model.project_with_status(lon, lat, h)}
+    if isinstance(peers.get("rpcfast"), BaseException):
+        print(f"rpcfast unavailable: {_reason(peers['rpcfast'])}")
+    else:
+        import rpcfast
+
+        methods["rpcfast.project"] = lambda: rpcfast.project(peers["rpcfast"], lon, lat, h)
+    sbs = side_by_side(methods, sorted({1, numba.get_num_threads()}), max(1, args.rounds))
+    print_side_by_side(sbs, n, "geoblock RpcModel.project_with_status", "rpcfast.project")
+    print()
+    if args.side_by_side_only:
+        return 0
     rows: list[Row] = []
 
     def case(direction, method, call, finish, note="", peer=None):
