@@ -526,7 +526,7 @@ def _fast_scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, window: RayWind
     idx = np.arange(n)
     outcome, level, root, droot, refined = raycast.scan(
         window, np.array([h_lo, h_mid, h_hi, h_q]), lon4, lat4, known, tops, bottoms, step,
-        nlev, 0.1 * tol, max_iter)
+        nlev, 0.25 * tol, max_iter)
     # certainly above the terrain everywhere: no intersection (as the exact scan's _POS)
     start[outcome == raycast.NONE] = _NONE_LEFT
     # not sure from the level before the first doubtful one: the exact scan goes on there

@@ -333,6 +333,7 @@ class RasterDem(DemBase):
         self._cache_key = (*identity, self._band, str(self._nodata_policy), self._fill_distance)
         self._inverse = np.array(tuple(~self._transform)[:6], dtype=np.float64)
         self._ray_windows: dict[tuple[int, int, int, int], RayWindow] = {}
+        self._window_stats: dict[tuple[int, int, int, int], tuple[float, float, int, int]] = {}
 
     # ------------------------------------------------------------------ properties
     @property
@@ -779,7 +780,13 @@ class RasterDem(DemBase):
             window = self._window(bounds)
             if window is None:
                 return (float("nan"), float("nan"))
-            lo, hi, _, _ = self._scan(*window)
+            found = self._window_stats.get(window)
+            if found is None:  # a window read and scanned once per DEM (localize asks twice)
+                found = self._scan(*window)
+                if len(self._window_stats) >= 64:
+                    self._window_stats.clear()
+                self._window_stats[window] = found
+            lo, hi, _, _ = found
             west, south, east, north = (float(v) for v in bounds)
             box = (west, south, east, north)
         if not (np.isfinite(lo) and np.isfinite(hi)):
