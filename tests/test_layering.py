@@ -41,6 +41,7 @@ LAYERS: dict[str, int] = {
     "geoblock._array": 0,
     "geoblock._affine": 0,
     "geoblock._lazy": 0,  # PEP 562 lazy names of the packages
+    "geoblock._jit": 0,  # numba kernels compiled on their first call
     "geoblock.coords": 0,
     # 1 file primitives: the lowest part of io, which the lazily-read values use
     "geoblock.io.files": 1,

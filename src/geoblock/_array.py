@@ -1,15 +1,18 @@
 """Private helpers shared by every vectorised function: argument broadcasting, status
-warnings, the finite bounding box of coordinate arrays."""
+warnings, the finite bounding box of coordinate arrays.
+
+The two kernels are :func:`~geoblock._jit.lazy_njit`: importing this module (every model
+does) imports neither numba nor its registries."""
 
 from __future__ import annotations
 
 import math
 import warnings
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from geoblock._jit import lazy_njit
 from geoblock.errors import (
     ConvergenceWarning,
     NoIntersectionWarning,
@@ -75,7 +78,7 @@ def warn_status(status: NDArray[np.uint8], operation: str, stacklevel: int = 3) 
             )
 
 
-@numba.njit(nogil=True, cache=True)
+@lazy_njit(nogil=True, cache=True)
 def _nb_all_finite(x: Float64Array, y: Float64Array) -> bool:  # pragma: no cover - compiled
     for k in range(x.size):
         if not (math.isfinite(x[k]) and math.isfinite(y[k])):
@@ -96,7 +99,7 @@ def all_finite(x: Float64Array, y: Float64Array) -> bool:
                                np.ascontiguousarray(y, dtype=np.float64).reshape(-1)))
 
 
-@numba.njit(nogil=True, cache=True)
+@lazy_njit(nogil=True, cache=True)
 def _nb_finite_bounds(  # pragma: no cover - compiled
     x: Float64Array, y: Float64Array
 ) -> tuple[float, float, float, float]:

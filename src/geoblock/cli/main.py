@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import importlib
 import signal
 import threading
 import traceback
@@ -70,6 +71,60 @@ def error_message(exc: BaseException) -> str:
         detail = _one_line(str(exc))
         text = f"{type(exc).__name__}: {detail}" if detail else type(exc).__name__
     return text
+
+
+#: built-in command -> (module, attribute, the short help ``geoblock --help`` shows for it).
+#: A command's module is imported only when the command runs or shows its own help, so that
+#: ``geoblock --help`` imports none of them (numpy, numba, PROJ...). The short helps are the
+#: commands' own, copied: ``tests/cli/test_cli_lazy.py`` fails when one differs.
+BUILTIN_COMMANDS: dict[str, tuple[str, str, str]] = {
+    "plugins": ("geoblock.cli.plugins", "plugins",
+                "List plugins, their hooks, models and commands."),
+    "info": ("geoblock.cli.info", "info",
+             "Describe a sensor model: size, parameters, footprint, GSD."),
+    "project": ("geoblock.cli.project", "project",
+                "Ground points (lon, lat, h) -> image (row, col)."),
+    "backproject": ("geoblock.cli.project", "backproject",
+                    "Image points (row, col) at height h -> ground (lon, lat)."),
+    "refine": ("geoblock.cli.refine", "refine",
+               "Fit an image correction (RPCV-0/RPCV-1/order 2) to GCPs."),
+    "adjust": ("geoblock.cli.adjust", "adjust",
+               "Adjust a block of images (MBA, DG, RFM, RPCV-0/1) with GCPs, TPs, DEM."),
+    "localize": ("geoblock.cli.localize", "localize",
+                 "Image points (row, col) -> ground (lon, lat, h) on a DEM."),
+    "match": ("geoblock.cli.match", "match",
+              "Tie points between images, guided by their sensor models (SIFT)."),
+    "triangulate": ("geoblock.cli.triangulate", "triangulate",
+                    "Points measured in 2+ images -> ground (lon, lat, h), no DEM."),
+    "dem-info": ("geoblock.cli.dem_info", "dem_info",
+                 "Describe a DEM: extent, CRS, vertical datum, heights."),
+    "ortho": ("geoblock.cli.ortho", "ortho",
+              "Orthorectify an image with its sensor model and a DEM."),
+    "mosaic": ("geoblock.cli.mosaic", "mosaic",
+               "Mosaic orthos (priority or feathering) with a contribution band."),
+    "simulate": ("geoblock.cli.simulate", "simulate",
+                 "Simulate a block with known truth (preset or scenario TOML)."),
+    "demo": ("geoblock.cli.demo", "demo",
+             "The whole pipeline on a simulated block: adjust, orthorectify, mosaic, report."),
+}
+
+
+class LazyCommand(click.Command):
+    """A built-in command's stand-in until it is run: its name and short help only
+    (:data:`BUILTIN_COMMANDS`). :meth:`GeoblockGroup.get_command` replaces it with the real
+    command, importing its module, the first time the command is resolved."""
+
+    def __init__(self, name: str, module: str, attribute: str, short_help: str) -> None:
+        super().__init__(name, short_help=short_help)
+        self.module = module
+        self.attribute = attribute
+
+    def load(self) -> click.Command:
+        """The real command (its module imported)."""
+        command = getattr(importlib.import_module(self.module), self.attribute)
+        if not isinstance(command, click.Command):  # pragma: no cover - a wrong table entry
+            raise TypeError(f"{self.module}.{self.attribute} is not a click command")
+        return command
 
 
 class BrokenCommand(click.Command):
@@ -181,7 +236,22 @@ class GeoblockGroup(click.Group):
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         self.load_plugin_commands()
-        return super().get_command(ctx, cmd_name)
+        command = super().get_command(ctx, cmd_name)
+        if isinstance(command, LazyCommand):
+            command = self.commands[cmd_name] = command.load()
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The commands' list of ``geoblock --help``, as click writes it, but from the
+        stand-ins' short helps: listing the built-in commands imports none of them."""
+        self.load_plugin_commands()
+        listed = [(name, self.commands.get(name)) for name in self.list_commands(ctx)]
+        commands = [(name, cmd) for name, cmd in listed if cmd is not None and not cmd.hidden]
+        if commands:
+            limit = formatter.width - 6 - max(len(name) for name, _ in commands)
+            rows = [(name, cmd.get_short_help_str(limit)) for name, cmd in commands]
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
 
     # ------------------------------------------------------------------ errors and warnings
     def main(self, *args: Any, **kwargs: Any) -> Any:
@@ -246,20 +316,6 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
     -------
     GeoblockGroup
     """
-    from geoblock.cli.adjust import adjust
-    from geoblock.cli.dem_info import dem_info
-    from geoblock.cli.demo import demo
-    from geoblock.cli.info import info
-    from geoblock.cli.localize import localize
-    from geoblock.cli.match import match
-    from geoblock.cli.mosaic import mosaic
-    from geoblock.cli.ortho import ortho
-    from geoblock.cli.plugins import plugins
-    from geoblock.cli.project import backproject, project
-    from geoblock.cli.refine import refine
-    from geoblock.cli.simulate import simulate
-    from geoblock.cli.triangulate import triangulate
-
     @click.group(
         cls=GeoblockGroup,
         name="geoblock",
@@ -292,18 +348,8 @@ def build_cli(plugin_manager: Any = None) -> GeoblockGroup:
           geoblock -v backproject scene.json measures.csv
         """
 
-    for command in (plugins, info, project, backproject):
-        cli.add_command(command)
-    cli.add_command(refine)
-    cli.add_command(adjust)
-    cli.add_command(localize)
-    cli.add_command(match)
-    cli.add_command(triangulate)
-    cli.add_command(dem_info)
-    cli.add_command(ortho)
-    cli.add_command(mosaic)
-    cli.add_command(simulate)
-    cli.add_command(demo)
+    for name, (module, attribute, short_help) in BUILTIN_COMMANDS.items():
+        cli.add_command(LazyCommand(name, module, attribute, short_help))
     return cli
 
 
