@@ -40,7 +40,7 @@ import numpy as np
 
 from geoblock.pixels import PIXEL_CENTRE
 
-__all__ = ["RayWindow", "box", "heights", "lagrange3", "scan", "scan_reference"]
+__all__ = ["RayWindow", "box", "heights", "lagrange3", "levels", "scan", "scan_reference"]
 
 #: outcome codes of :func:`scan`, per point
 NONE = 0  #: every level certainly above the terrain (no crossing in the range)
@@ -388,6 +388,80 @@ def heights(window: RayWindow, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
                     window.west, window.rows, window.cols, window.taps, window.geoid,
                     window.geoid_header, out)
     return out
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _nb_levels(lo_lon: np.ndarray, lo_lat: np.ndarray, hi_lon: np.ndarray, hi_lat: np.ndarray,
+               dh: float, res: float, span: float, max_levels: int, step: np.ndarray,
+               nlev: np.ndarray, along: np.ndarray) -> None:  # pragma: no cover - compiled
+    """See :func:`levels`."""
+    m_per_deg = math.radians(1.0) * 6378137.0
+    n = lo_lon.size
+    kmax = -1.0
+    for i in range(n):
+        dy = (hi_lat[i] - lo_lat[i]) * m_per_deg
+        dx = (((hi_lon[i] - lo_lon[i] + 180.0) % 360.0 - 180.0) * m_per_deg
+              * math.cos(math.radians(lo_lat[i])))
+        k = math.sqrt(dx * dx + dy * dy) / dh
+        along[i] = k  # k for now
+        if np.isfinite(k) and k > kmax:
+            kmax = k
+    if kmax < 0.0:
+        kmax = 1.0  # no ray known at both ends: half a post per metre of height
+    lo_step = span / max_levels
+    for i in range(n):
+        k = along[i]
+        if not np.isfinite(k):
+            k = kmax
+        st = np.inf
+        if res > 0 and k > 0:
+            st = 0.5 * res / k
+        st = min(max(st, lo_step), span)
+        step[i] = st
+        nlev[i] = int(math.ceil(span / st - 1e-9))
+        along[i] = math.sqrt(1.0 + k * k)
+
+
+def levels(lo_lon: np.ndarray, lo_lat: np.ndarray, hi_lon: np.ndarray, hi_lat: np.ndarray,
+           dh: float, res: float, span: float,
+           max_levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The scan's height step, level count and obliquity per ray (compiled, one pass).
+
+    Parameters
+    ----------
+    lo_lon, lo_lat, hi_lon, hi_lat : ndarray, (N,)
+        Each ray's ground position at two heights ``dh`` metres apart, degrees.
+    dh : float
+        Height between the two positions, metres.
+    res : float
+        DEM post spacing, metres (0: unknown).
+    span : float
+        Height interval scanned, metres.
+    max_levels : int
+        Cap on the levels per ray.
+
+    Returns
+    -------
+    step : ndarray, (N,)
+        ``0.5 * res / k`` (``k``: horizontal metres per metre of height; unknown rays take
+        the largest known ``k``, or 1), clipped to ``[span / max_levels, span]``: successive
+        samples at most half a post apart on the ground.
+    nlev : ndarray of int64, (N,)
+        ``ceil(span / step)`` intervals (levels ``0 .. nlev``).
+    along : ndarray, (N,)
+        ``sqrt(1 + k**2)``: metres along the ray per metre of height.
+    """
+    n = lo_lon.size
+    step = np.empty(n)
+    nlev = np.empty(n, np.int64)
+    along = np.empty(n)
+    if n:
+        _nb_levels(np.ascontiguousarray(lo_lon, np.float64),
+                   np.ascontiguousarray(lo_lat, np.float64),
+                   np.ascontiguousarray(hi_lon, np.float64),
+                   np.ascontiguousarray(hi_lat, np.float64), float(dh), float(res),
+                   float(span), int(max_levels), step, nlev, along)
+    return step, nlev, along
 
 
 @numba.njit(nogil=True, cache=True)

@@ -404,20 +404,12 @@ def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_it
         h_lo, h_hi = bottom, top
         lo_lon, lo_lat, lo_st = ev.ground(row, col, np.full(n, bottom))
         hi_lon, hi_lat, hi_st = ev.ground(row, col, np.full(n, top))
-    # horizontal metres per metre of height
-    dy = (hi_lat - lo_lat) * _M_PER_DEG
-    dx = ((hi_lon - lo_lon + 180.0) % 360.0 - 180.0) * _M_PER_DEG * np.cos(np.radians(lo_lat))
-    k = np.hypot(dx, dy) / (h_hi - h_lo)
-    if not np.isfinite(k).any():
-        k[:] = 1.0  # no ray known at both ends: half a post per metre of height
-    k = np.where(np.isfinite(k), k, np.nanmax(k))
+    # per ray: the height step (half a DEM post on the ground), the intervals (levels
+    # 0..nlev) and the metres along the ray per metre of height
     res = _resolution(ev.dem)
     span = top - bottom
-    with np.errstate(divide="ignore"):
-        step = np.where(k > 0, 0.5 * res / k, np.inf) if res > 0 else np.full(n, np.inf)
-    step = np.clip(step, span / max_levels, span)
-    nlev = np.ceil(span / step - 1e-9).astype(np.int64)  # intervals; levels 0..nlev
-    along = np.sqrt(1.0 + k * k)  # metres along the ray per metre of height
+    step, nlev, along = raycast.levels(lo_lon, lo_lat, hi_lon, hi_lat, h_hi - h_lo, res, span,
+                                       max_levels)
 
     tops = np.full(n, top)
     bottoms = np.full(n, bottom)
