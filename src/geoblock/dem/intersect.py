@@ -413,33 +413,23 @@ def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_it
 
     tops = np.full(n, top)
     bottoms = np.full(n, bottom)
-    # per point: the level the exact scan starts at (-1: resolved without it)
-    start = np.zeros(n, np.int64)
-    cls = np.full(n, _UNK, np.int8)
-    reason = np.full(n, _NO_DEM, np.uint8)
-    a = np.full(n, np.nan)
-    fa = np.full(n, np.nan)
-    b = np.full(n, np.nan)
-    fb = np.full(n, np.nan)
-    b_lon = np.full(n, np.nan)
-    b_lat = np.full(n, np.nan)
+    # per point: the level the exact scan starts at (negative: not scanned exactly)
+    start: np.ndarray | None = None
+    # brackets to refine on the exact ray: (points, a, f(a), b, f(b), lon and lat at b)
+    brackets: list[tuple[np.ndarray, ...]] = []
     if _FAST_SCAN if fast is None else fast:
         window = _ray_window(ev, (lo_lon, lo_lat, hi_lon, hi_lat), res)
         if window is not None:
             ends = (h_lo, h_hi, lo_lon, lo_lat, lo_st, hi_lon, hi_lat, hi_st)
-            fast_out = _fast_scan(ev, row, col, window, ends, tops, bottoms, step, nlev,
-                                  along, tol, max_iter)
-            start, done, f_lon, f_lat, f_h = fast_out[:5]
-            lon[done], lat[done], h[done] = f_lon[done], f_lat[done], f_h[done]
-            status[done] = _OK
-            neg = fast_out[5]  # certain brackets to refine on the exact ray
-            for arr, new in zip((cls, reason, a, fa, b, fb, b_lon, b_lat), fast_out[6:],
-                                strict=True):
-                arr[neg] = new[neg]
-            status[start == _NONE_LEFT] = _NO_INTERSECTION
-    scan = np.flatnonzero(start >= 0)
+            start, acc, acc_lon, acc_lat, acc_h, certain = _fast_scan(
+                ev, row, col, window, ends, tops, bottoms, step, nlev, along, tol, max_iter)
+            lon[acc], lat[acc], h[acc] = acc_lon, acc_lat, acc_h
+            status[acc] = _OK
+            brackets.append(certain)
+            # points found certainly above the terrain keep NO_INTERSECTION
+    scan = np.arange(n) if start is None else np.flatnonzero(start >= 0)
     if scan.size:
-        j0 = start[scan]
+        j0 = np.zeros(scan.size, np.int64) if start is None else start[scan]
         s_top = np.where(j0 > 0, tops[scan] - j0 * step[scan], tops[scan])
         outcome = _scan(ev, row[scan], col[scan], s_top, bottoms[scan], step[scan],
                         nlev[scan] - j0, max_evaluations)
@@ -452,20 +442,25 @@ def _robust(ev: _Evaluator, row: np.ndarray, col: np.ndarray, tol: float, max_it
                           np.ceil(span / step[pts] - 1e-9).astype(np.int64), max_evaluations)
             for arr, new in zip(outcome, extra, strict=True):
                 arr[redo] = new
-        for arr, new in zip((cls, reason, a, fa, b, fb, b_lon, b_lat), outcome, strict=True):
-            arr[scan] = new
         sc = outcome[0]
         status[scan] = np.where(sc == _NEG, _OK,
                                 np.where((sc == _START) | (sc == _POS), _NO_INTERSECTION,
                                          outcome[1]))
-    exact = (cls == _NEG) & (fb == 0.0)
-    lon[exact], lat[exact], h[exact] = b_lon[exact], b_lat[exact], b[exact]
-    status[exact] = _OK
-    todo = np.flatnonzero((cls == _NEG) & ~exact)
-    if todo.size:
-        res_ = _illinois(ev, row[todo], col[todo], a[todo], fa[todo], b[todo], fb[todo],
-                         b_lon[todo], b_lat[todo], along[todo], tol, max_iter)
-        lon[todo], lat[todo], h[todo], status[todo] = res_
+        neg = sc == _NEG
+        brackets.append((scan[neg], *(arr[neg] for arr in outcome[2:])))
+    if brackets:
+        pts, a, fa, b, fb, b_lon, b_lat = (np.concatenate(parts) for parts in zip(*brackets,
+                                                                              strict=True))
+        exact = fb == 0.0  # a level on the terrain
+        pe = pts[exact]
+        lon[pe], lat[pe], h[pe] = b_lon[exact], b_lat[exact], b[exact]
+        status[pe] = _OK
+        t = ~exact
+        todo = pts[t]
+        if todo.size:
+            res_ = _illinois(ev, row[todo], col[todo], a[t], fa[t], b[t], fb[t], b_lon[t],
+                             b_lat[t], along[todo], tol, max_iter)
+            lon[todo], lat[todo], h[todo], status[todo] = res_
     return lon, lat, h, status
 
 
@@ -489,13 +484,14 @@ def _ray_window(ev: _Evaluator, ends: tuple[np.ndarray, ...], res: float) -> Ray
 def _fast_scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, window: RayWindow,
                ends: _Nodes, tops: np.ndarray, bottoms: np.ndarray, step: np.ndarray,
                nlev: np.ndarray, along: np.ndarray, tol: float,
-               max_iter: int) -> tuple[np.ndarray, ...]:
+               max_iter: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                       np.ndarray, tuple[np.ndarray, ...]]:
     """The scan on approximate rays (:mod:`geoblock.dem._raycast`), checked on the exact ray.
 
     Returns ``start`` (per point: the level the exact scan must start at, ``_RESOLVED`` when
     done here, ``_NONE_LEFT`` when the ray is certainly above the terrain over the range),
-    ``done`` and the converged ``lon, lat, h``, then ``neg`` (certain brackets still to refine
-    on the exact ray) with the scan's outcome arrays for them.
+    the points converged here and their ``lon, lat, h``, and the certain brackets still to
+    refine on the exact ray: ``(points, a, f(a), b, f(b), lon at b, lat at b)``.
     """
     n = row.size
     h_lo, h_hi, lo_lon, lo_lat, lo_st, hi_lon, hi_lat, hi_st = ends
@@ -507,60 +503,44 @@ def _fast_scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, window: RayWind
     lon4[1], lat4[1], mid_st = ev.ground(row, col, np.full(n, h_mid))
     lon4[3], lat4[3], q_st = ev.ground(row, col, np.full(n, h_q))
     known = (lo_st == _OK) & (hi_st == _OK) & (mid_st == _OK) & (q_st == _OK)
-    start = np.zeros(n, np.int64)
-    done = np.zeros(n, bool)
-    f_lon = np.full(n, np.nan)
-    f_lat = np.full(n, np.nan)
-    f_h = np.full(n, np.nan)
-    neg = np.zeros(n, bool)
-    outs = [np.full(n, _UNK, np.int8), np.full(n, _NO_DEM, np.uint8)] + [
-        np.full(n, np.nan) for _ in range(6)]
-    idx = np.arange(n)
     outcome, level, root, droot, refined = raycast.scan(
         window, np.array([h_lo, h_mid, h_hi, h_q]), lon4, lat4, known, tops, bottoms, step,
         nlev, 0.25 * tol, max_iter)
-    # certainly above the terrain everywhere: no intersection (as the exact scan's _POS)
+    # the exact scan starts at level 0 for the rays the approximation does not serve, and
+    # from the level before the first doubtful one for the others; points certainly above
+    # the terrain everywhere get no exact scan (NO_INTERSECTION, as the exact scan's _POS)
+    start = np.zeros(n, np.int64)
     start[outcome == raycast.NONE] = _NONE_LEFT
-    # not sure from the level before the first doubtful one: the exact scan goes on there
-    unsure = outcome == raycast.UNSURE
-    start[idx[unsure]] = np.maximum(level[unsure] - 1, 0)
+    unsure = np.flatnonzero(outcome == raycast.UNSURE)
+    start[unsure] = np.maximum(level[unsure] - 1, 0)
     # certain brackets: the exact ray at the approximate root, accepted when within tolerance
-    br = np.flatnonzero(outcome == raycast.BRACKET)
-    pts = idx[br]
+    pts = np.flatnonzero(outcome == raycast.BRACKET)
     start[pts] = _RESOLVED
-    x = root[br]
-    good_root = np.isfinite(x) & (refined[br] == raycast.REFINED)
+    x = root[pts]
+    good_root = np.isfinite(x) & (refined[pts] == raycast.REFINED)
     x_eval = np.where(good_root, x, 0.5 * (tops[pts] + bottoms[pts]))
     x_lon, x_lat, reason = ev.ground(row[pts], col[pts], x_eval)
     fx = x_eval - raycast.heights(window, x_lon, x_lat)
     with np.errstate(invalid="ignore", divide="ignore"):
-        dist = np.abs(fx) / droot[br] * along[pts]
-    accept = (good_root & (reason == _OK) & (droot[br] > 0) & np.isfinite(fx)
-              & (((np.abs(fx) <= tol) & (dist <= tol)) | (fx == 0)))
+        dist = np.abs(fx) / droot[pts] * along[pts]
+        accept = (good_root & (reason == _OK) & (droot[pts] > 0) & np.isfinite(fx)
+                  & (((np.abs(fx) <= tol) & (dist <= tol)) | (fx == 0)))
     acc = pts[accept]
-    done[acc] = True
-    f_lon[acc], f_lat[acc], f_h[acc] = x_lon[accept], x_lat[accept], x_eval[accept]
     # the others: the exact Illinois in the certain bracket (levels j - 1 and j)
     rest = ~accept
-    if rest.any():
-        rp = pts[rest]
-        j = level[br][rest]
-        ha = tops[rp] - (j - 1) * step[rp]
-        hb = np.where(j >= nlev[rp], bottoms[rp], tops[rp] - j * step[rp])
-        m = rp.size
-        e_lon, e_lat, e_f, e_reason = ev(np.tile(row[rp], 2), np.tile(col[rp], 2),
-                                         np.concatenate([ha, hb]))
-        sure = (e_reason[:m] == _OK) & (e_reason[m:] == _OK) & (e_f[:m] > 0) & (e_f[m:] <= 0)
-        # a bracket the exact ray does not confirm (cannot happen within the bounds): rescan
-        start[rp[~sure]] = np.maximum(j[~sure] - 1, 0)
-        sp = rp[sure]
-        neg[sp] = True
-        outs[0][sp] = _NEG
-        outs[1][sp] = _OK
-        outs[2][sp], outs[3][sp] = ha[sure], e_f[:m][sure]
-        outs[4][sp], outs[5][sp] = hb[sure], e_f[m:][sure]
-        outs[6][sp], outs[7][sp] = e_lon[m:][sure], e_lat[m:][sure]
-    return (start, done, f_lon, f_lat, f_h, neg, *outs)
+    rp = pts[rest]
+    j = level[rp]
+    ha = tops[rp] - (j - 1) * step[rp]
+    hb = np.where(j >= nlev[rp], bottoms[rp], tops[rp] - j * step[rp])
+    m = rp.size
+    e_lon, e_lat, e_f, e_reason = ev(np.tile(row[rp], 2), np.tile(col[rp], 2),
+                                     np.concatenate([ha, hb]))
+    sure = (e_reason[:m] == _OK) & (e_reason[m:] == _OK) & (e_f[:m] > 0) & (e_f[m:] <= 0)
+    # a bracket the exact ray does not confirm (cannot happen within the bounds): rescan
+    start[rp[~sure]] = np.maximum(j[~sure] - 1, 0)
+    certain = (rp[sure], ha[sure], e_f[:m][sure], hb[sure], e_f[m:][sure], e_lon[m:][sure],
+               e_lat[m:][sure])
+    return start, acc, x_lon[accept], x_lat[accept], x_eval[accept], certain
 
 
 def _scan(ev: _Evaluator, row: np.ndarray, col: np.ndarray, top: np.ndarray,
