@@ -1,7 +1,7 @@
 """RPC projection and localisation: geoblock against rpcm, rpcfast, shareloc and GDAL.
 
 Run: ``python benchmarks/bench_rpc.py [--points N] [--quick] [--rpc FILE] [--cold-jit]
-[--rounds R] [--side-by-side-only]``.
+[--rounds R] [--whole ROUNDS] [--side-by-side-only]``.
 The peers are not geoblock dependencies: ``pip install -r benchmarks/requirements.txt``; a peer
 that cannot be imported, or fails on the data, gets a row "unavailable: <reason>".
 
@@ -309,6 +309,82 @@ def print_side_by_side(
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
 
 
+#: one whole process per library: read the RPC from the file, build the model, project N
+#: points (random over the RPC's normalised box, at HEIGHT_OFF), print the call's seconds
+_WHOLE = {
+    "geoblock": """
+import sys, time
+import numpy as np, rasterio
+from geoblock_rpc import RpcModel, Rpc00b
+with rasterio.open(sys.argv[1]) as ds:
+    g = ds.rpcs.to_gdal()
+model = RpcModel(Rpc00b.from_gdal(g, source=sys.argv[1]))
+r = model.rpc
+rng = np.random.default_rng(0)
+n = int(sys.argv[2])
+lon = r.long_off + rng.uniform(-0.9, 0.9, n) * r.long_scale
+lat = r.lat_off + rng.uniform(-0.9, 0.9, n) * r.lat_scale
+h = np.full(n, r.height_off)
+t0 = time.perf_counter()
+(row, col), status = model.project_with_status(lon, lat, h)
+print(time.perf_counter() - t0, int((status == 0).sum()))
+""",
+    "rpcfast": """
+import sys, time
+import numpy as np, rasterio, rpcfast
+with rasterio.open(sys.argv[1]) as ds:
+    d = ds.rpcs.to_dict()
+keys = ("line_off", "samp_off", "lat_off", "long_off", "height_off", "line_scale",
+        "samp_scale", "lat_scale", "long_scale", "height_scale")
+model = rpcfast.RPCModel(**{k: d[k] for k in keys}, line_num_coeff=d["line_num_coeff"],
+                         line_den_coeff=d["line_den_coeff"], samp_num_coeff=d["samp_num_coeff"],
+                         samp_den_coeff=d["samp_den_coeff"], source_format="rasterio")
+rng = np.random.default_rng(0)
+n = int(sys.argv[2])
+lon = d["long_off"] + rng.uniform(-0.9, 0.9, n) * d["long_scale"]
+lat = d["lat_off"] + rng.uniform(-0.9, 0.9, n) * d["lat_scale"]
+h = np.full(n, d["height_off"])
+t0 = time.perf_counter()
+col, row = rpcfast.project(model, lon, lat, h)
+print(time.perf_counter() - t0, int(np.isfinite(row).sum()))
+""",
+}
+
+
+def whole_processes(path: Path, n: int, rounds: int, thread_counts: list[int]) -> None:
+    """Whole processes side by side (start-up, the file, the model, the first call): one
+    process per library and thread count (``NUMBA_NUM_THREADS``) per round, interleaved after
+    a warm-up round; wall time of the process and the projection call inside it."""
+    import subprocess
+
+    wall: dict[tuple[str, int], list[float]] = {}
+    call: dict[tuple[str, int], list[float]] = {}
+    for k in range(rounds + 1):
+        for t in thread_counts:
+            env = dict(os.environ, NUMBA_NUM_THREADS=str(t))
+            for name, code in _WHOLE.items():
+                t0 = time.perf_counter()
+                done = subprocess.run([sys.executable, "-c", code, str(path), str(n)], env=env,
+                                      capture_output=True, text=True)
+                elapsed = time.perf_counter() - t0
+                if done.returncode != 0:
+                    print(f"{name}: failed: {done.stderr.strip().splitlines()[-1:]}")
+                    return
+                if k:  # round 0 is the warm-up (page cache, numba's cache files)
+                    wall.setdefault((name, t), []).append(elapsed)
+                    call.setdefault((name, t), []).append(float(done.stdout.split()[0]))
+    print(f"whole processes: read the RPC, build the model, project {n} points "
+          f"({rounds} interleaved rounds; load after {os.getloadavg()[0]:.2f})")
+    head = (f"{'library':10s} {'threads':>7s} {'wall min s':>10s} {'median s':>9s} "
+            f"{'call min ms':>11s} {'median ms':>9s}")
+    print(head)
+    print("-" * len(head))
+    for key in wall:
+        w, c = wall[key], call[key]
+        print(f"{key[0]:10s} {key[1]:7d} {min(w):10.3f} {float(np.median(w)):9.3f} "
+              f"{1e3 * min(c):11.2f} {1e3 * float(np.median(c)):9.2f}")
+
+
 # ---------------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
@@ -327,6 +403,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--rounds", type=int, default=15,
                         help="rounds of the side-by-side projection (default 15)")
+    parser.add_argument("--whole", type=int, default=0, metavar="ROUNDS",
+                        help="then time whole processes (start-up, file, model, one call on all "
+                        "points) of geoblock and rpcfast, 1 and 2 threads, ROUNDS rounds")
     parser.add_argument("--side-by-side-only", action="store_true",
                         help="only the side-by-side projection against rpcfast (1 and 2 threads)")
     args = parser.parse_args(argv)
@@ -421,6 +500,9 @@ def main(argv=None) -> int:
     sbs = side_by_side(methods, sorted({1, numba.get_num_threads()}), max(1, args.rounds))
     print_side_by_side(sbs, n, "geoblock RpcModel.project_with_status", "rpcfast.project")
     print()
+    if args.whole and "rpcfast.project" in methods:
+        whole_processes(path, n, args.whole, sorted({1, numba.get_num_threads()}))
+        print()
     if args.side_by_side_only:
         return 0
     rows: list[Row] = []
