@@ -110,6 +110,34 @@ def test_the_projection_loop_is_simd_vectorised():
     assert row.tobytes() == row2.tobytes() and status.tobytes() == status2.tobytes()
 
 
+@pytest.mark.parametrize("kernel", [_kernels.project, _kernels.project_serial])
+def test_status_precedence_of_the_branch_free_point(kernel):
+    """Every test of a point is evaluated (no early return); the status keeps the order the
+    branching code had: INVALID_INPUT, then OUT_OF_DOMAIN, then DIVERGED."""
+    model = RpcModel.example()
+    n = PARALLEL_MIN_POINTS + 64 if kernel is _kernels.project else 64
+    lon, lat, h = ground_sample(model, n)
+    lon[42], h[42] = np.nan, 1e7  # invalid and out of the height domain
+    lat[43], lon[43] = np.nan, 1e300  # invalid and off the Earth
+    lon[44] = -1e300  # off the Earth: not wrapped into the domain
+    lat[45] = 90.5  # beyond the pole
+    h[46] = -np.inf
+    row, col, status = empty_out(n)
+    kernel(lon, lat, h, model._prm, model._coef, row, col, status)
+    expected = np.full(n, Status.CONVERGED, np.uint8)
+    expected[:14] = expected[42:44] = expected[46] = Status.INVALID_INPUT
+    expected[14:35] = expected[44:46] = Status.OUT_OF_DOMAIN
+    assert status.tolist() == expected.tolist()
+    bad = expected != Status.CONVERGED
+    assert np.isnan(row[bad]).all() and np.isnan(col[bad]).all()
+    assert np.isfinite(row[~bad]).all() and np.isfinite(col[~bad]).all()
+    coef = model._coef.copy()
+    coef[3] = 0.0  # column denominator: DIVERGED, after the input and domain tests
+    kernel(lon, lat, h, model._prm, coef, row, col, status)
+    expected[~bad] = Status.DIVERGED
+    assert status.tolist() == expected.tolist() and np.isnan(col).all()
+
+
 def test_nan_and_out_of_domain_inputs_get_nan_and_their_status_through_out():
     model = RpcModel.example()
     lon = np.array([7.05, np.nan, 7.05, 8.05, 7.05, 1e300])
