@@ -3,13 +3,16 @@
 * :func:`build_cli` makes the group, optionally from a given plugin manager (tests, embedding);
   :data:`cli` is one built over the process-wide plugin manager and :func:`main` the
   console-script entry point.
-* Built-in commands are added first. Plugin commands come from each plugin's
-  ``geoblock_register_commands(cli)``, called one plugin at a time inside ``try``: a plugin
-  whose hook raises is rolled back, reported with a :class:`~geoblock.errors.PluginWarning`
-  and replaced by a :class:`BrokenCommand` stub that explains the failure (click-plugins'
-  ``BrokenCommand``, as vendored by rasterio). A plugin cannot replace an existing command.
-  Plugin commands are loaded lazily, the first time the group lists or resolves a command, so
-  that ``-q`` already applies to the warnings of plugin loading.
+* Built-in commands are added first, as :class:`LazyCommand` stand-ins (name and short help,
+  from :data:`BUILTIN_COMMANDS`): a command's module is imported when the command runs or
+  shows its own help, so ``geoblock --help`` imports none of them. Plugin commands come from
+  each plugin's ``geoblock_register_commands(cli)``, called one plugin at a time inside
+  ``try``: a plugin whose hook raises is rolled back, reported with a
+  :class:`~geoblock.errors.PluginWarning` and replaced by a :class:`BrokenCommand` stub that
+  explains the failure (click-plugins' ``BrokenCommand``, as vendored by rasterio). A plugin
+  cannot replace an existing command. Plugin commands are loaded lazily, the first time the
+  group lists or resolves a command, so that ``-q`` already applies to the warnings of plugin
+  loading.
 * Any exception (a :class:`~geoblock.errors.GeoblockError` or an unexpected one) becomes one
   ``Error: <message>`` line on standard error and exit code 1; ``--verbose`` prints the
   traceback first. click's usage errors keep click's behaviour (exit code 2).
@@ -44,7 +47,16 @@ from geoblock.errors import (
     PluginWarning,
 )
 
-__all__ = ["BrokenCommand", "GeoblockGroup", "Terminated", "build_cli", "cli", "main"]
+__all__ = [
+    "BUILTIN_COMMANDS",
+    "BrokenCommand",
+    "GeoblockGroup",
+    "LazyCommand",
+    "Terminated",
+    "build_cli",
+    "cli",
+    "main",
+]
 
 _GEOBLOCK_WARNINGS = (GeoblockWarning, GeoblockDeprecationWarning)
 
