@@ -255,3 +255,31 @@ def test_ventoux_fast_and_exact_scans_agree(monkeypatch, data_dir):
     (r, c), _ = model.project_with_status(g.lon, g.lat, g.h)
     assert np.hypot(r - row, c - col).max() < 1e-7
     assert np.abs(g.h - dem.height(g.lon, g.lat)).max() <= 1e-3
+
+
+def test_whole_world_dem_across_its_west_edge(monkeypatch, data_dir):
+    """A raster from -180 to 180 degrees under a scene across the antimeridian (GDAL's
+    test_transformer_15 RPC): rays on both sides of the raster's west edge, where sampling
+    wraps; the fast and the exact scans give the same answers."""
+    rpc = data_dir / "gdal-autotest/extracted/transformer_15_rpc.vrt"
+    if not rpc.exists():
+        pytest.skip(f"no {rpc}")
+    model = geoblock.open_model(rpc)
+    step = 0.02
+    lon = -180.0 + step * (np.arange(18000) + 0.5)
+    lat = 1.0 - step * (np.arange(100) + 0.5)
+    heights = 50.0 + 40.0 * np.sin(lon / 0.01)[None, :] * np.cos(lat / 0.013)[:, None]
+    dem = ArrayDem(heights, Affine(step, 0, -180.0, 0, -step, 1.0), "EPSG:4326",
+                   vertical="ellipsoid")
+    rows, cols = model.shape
+    row, col = (a.ravel() for a in np.meshgrid(np.linspace(-0.5, rows - 0.5, 15),
+                                               np.linspace(-0.5, cols - 0.5, 15)))
+    fast, ref, seen = both_paths(monkeypatch, model, row, col, dem, tolerance_m=1e-4)
+    assert np.all(ref[1] == 0)
+    np.testing.assert_array_equal(fast[1], ref[1])
+    np.testing.assert_allclose(fast[0].h, ref[0].h, atol=1e-3)
+    dlon = (fast[0].lon - ref[0].lon + 180.0) % 360.0 - 180.0
+    assert np.abs(dlon).max() < 1e-7 and np.abs(fast[0].lat - ref[0].lat).max() < 1e-7
+    # both sides of the line among the answers, and the compiled scan served most rays
+    assert (fast[0].lon > 179.0).any() and (fast[0].lon < -179.0).any()
+    assert np.mean(seen == raycast.BRACKET) > 0.5

@@ -210,26 +210,17 @@ def _undulation(g: np.ndarray, hdr: np.ndarray, lon: float,
 
 
 @numba.njit(inline="always")
-def _height(posts: np.ndarray, off_r: float, off_c: float, inv: np.ndarray, west: float,
-            rows: int, cols: int, n: int, g: np.ndarray, hdr: np.ndarray, lon: float,
-            lat: float, margin: float, voids: bool) -> tuple[float, bool]:  # pragma: no cover
-    """Ellipsoidal height at a point (NaN when none) and whether every point within
-    ``margin`` pixels has a height too (``certain``)."""
-    dx = lon - west
-    if not (dx >= 0.0 and dx < 360.0):
-        dx = dx % 360.0
-    xx = west + dx
-    cc = (inv[0] * xx + inv[1] * lat + inv[2]) - PIXEL_CENTRE
-    rr = (inv[3] * xx + inv[4] * lat + inv[5]) - PIXEL_CENTRE
+def _height_px(posts: np.ndarray, off_r: float, off_c: float, rows: int, cols: int, n: int,
+               rr: float, cc: float, margin: float,
+               voids: bool) -> tuple[float, bool]:  # pragma: no cover - compiled
+    """The interpolated posts at raster pixel-centre coords ``(rr, cc)`` (NaN outside the
+    coverage or the window) and whether every point within ``margin`` pixels has a value
+    too (``certain``)."""
     if not (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
             and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
         return np.nan, False
     certain = (rr - margin >= -PIXEL_CENTRE and rr + margin <= rows - PIXEL_CENTRE
                and cc - margin >= -PIXEL_CENTRE and cc + margin <= cols - PIXEL_CENTRE)
-    # wrapping: a point near the west edge of a whole-world raster may wrap to the east
-    if certain and (dx < margin * abs(1.0 / inv[0]) + 1e-9
-                    or dx > 360.0 - margin * abs(1.0 / inv[0]) - 1e-9):
-        certain = False
     hi_r = rows - 1.0
     hi_c = cols - 1.0
     r = min(max(rr, 0.0), hi_r) - off_r
@@ -244,10 +235,25 @@ def _height(posts: np.ndarray, off_r: float, off_c: float, inv: np.ndarray, west
                 c2 = min(max(cc + sc * margin, 0.0), hi_c) - off_c
                 if not np.isfinite(_tap(posts, r2, c2, n)):
                     certain = False
-    z = z + _undulation(g, hdr, lon, lat)
     if not np.isfinite(z):
         certain = False
     return z, certain
+
+
+@numba.njit(inline="always")
+def _height(posts: np.ndarray, off_r: float, off_c: float, inv: np.ndarray, west: float,
+            rows: int, cols: int, n: int, g: np.ndarray, hdr: np.ndarray, lon: float,
+            lat: float) -> float:  # pragma: no cover - compiled
+    """Ellipsoidal height at a point: the posts interpolated plus the geoid's ``N`` at the
+    point (NaN when none), as :meth:`geoblock.dem.RasterDem.height` computes it."""
+    dx = lon - west
+    if not (dx >= 0.0 and dx < 360.0):
+        dx = dx % 360.0
+    xx = west + dx
+    cc = (inv[0] * xx + inv[1] * lat + inv[2]) - PIXEL_CENTRE
+    rr = (inv[3] * xx + inv[4] * lat + inv[5]) - PIXEL_CENTRE
+    z = _height_px(posts, off_r, off_c, rows, cols, n, rr, cc, 0.0, False)[0]
+    return z + _undulation(g, hdr, lon, lat)
 
 
 @numba.njit(inline="always")
@@ -278,6 +284,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
     d01, d02, d12 = h0 - h1, h0 - h2, h1 - h2
     i0, i1, i2 = 1.0 / (d01 * d02), 1.0 / (-d01 * d12), 1.0 / (d02 * d12)
     m_per_deg = math.radians(1.0) * 6378137.0
+    width = abs(cols / inv[0])  # degrees of longitude the raster spans
+    centre = west + 0.5 * cols / inv[0]  # (inv[0] = 1 / the column step, signed)
+    wide = width > 180.0
     for i in numba.prange(top.size):
         outcome[i] = INELIGIBLE
         level[i] = nlev[i] + 1
@@ -303,6 +312,23 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
             continue
         tau = slope * delta + geoid_err + 1e-6
         margin = delta / post_m + 1e-9
+        # the nodes in raster pixel coordinates (affine in lon/lat: the quadratic through
+        # them is the quadratic through the ground positions), the ray's longitudes taken
+        # as one piece within 180 degrees of the raster's centre (where every point of its
+        # coverage is); on a raster wider than 180 degrees, a ray across its west edge
+        # (where the sampling wraps) is left to the exact scan
+        x1 = centre + ((lo1 - centre + 180.0) % 360.0 - 180.0)
+        x0 = x1 + (lo0 - lo1)
+        x2 = x1 + (lo2 - lo1)
+        if wide and not (min(x0, x2) >= west and max(x0, x2) < west + 360.0):
+            outcome[i] = INELIGIBLE
+            continue
+        c0 = (inv[0] * x0 + inv[1] * la0 + inv[2]) - PIXEL_CENTRE
+        c1 = (inv[0] * x1 + inv[1] * la1 + inv[2]) - PIXEL_CENTRE
+        c2 = (inv[0] * x2 + inv[1] * la2 + inv[2]) - PIXEL_CENTRE
+        r0 = (inv[3] * x0 + inv[4] * la0 + inv[5]) - PIXEL_CENTRE
+        r1 = (inv[3] * x1 + inv[4] * la1 + inv[5]) - PIXEL_CENTRE
+        r2 = (inv[3] * x2 + inv[4] * la2 + inv[5]) - PIXEL_CENTRE
         outcome[i] = NONE
         f_up = np.nan
         h_up = np.nan
@@ -311,10 +337,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
             w0 = (h - h1) * (h - h2) * i0
             w1 = (h - h0) * (h - h2) * i1
             w2 = (h - h0) * (h - h1) * i2
-            lon = _approx(w0, w1, w2, lo0, lo1, lo2)
-            lat = _approx(w0, w1, w2, la0, la1, la2)
-            z, certain = _height(posts, off_r, off_c, inv, west, rows, cols, n, g, hdr, lon,
-                                 lat, margin, voids)
+            z, certain = _height_px(posts, off_r, off_c, rows, cols, n,
+                                    _approx(w0, w1, w2, r0, r1, r2),
+                                    _approx(w0, w1, w2, c0, c1, c2), margin, voids)
             f = h - z
             if certain and f > tau:
                 f_up = f
@@ -337,9 +362,9 @@ def _nb_scan(nodes: np.ndarray, lon4: np.ndarray, lat4: np.ndarray, known: np.nd
                 w0 = (x - h1) * (x - h2) * i0
                 w1 = (x - h0) * (x - h2) * i1
                 w2 = (x - h0) * (x - h1) * i2
-                zx, _c = _height(posts, off_r, off_c, inv, west, rows, cols, n, g, hdr,
-                                 _approx(w0, w1, w2, lo0, lo1, lo2),
-                                 _approx(w0, w1, w2, la0, la1, la2), 0.0, False)
+                zx = _height_px(posts, off_r, off_c, rows, cols, n,
+                                _approx(w0, w1, w2, r0, r1, r2),
+                                _approx(w0, w1, w2, c0, c1, c2), 0.0, False)[0]
                 fx = x - zx
                 if not np.isfinite(fx):
                     x = np.nan
@@ -373,7 +398,7 @@ def _nb_heights(lon: np.ndarray, lat: np.ndarray, posts: np.ndarray, off_r: floa
     """Ellipsoidal heights at points from the window (NaN where it has none)."""
     for i in numba.prange(lon.size):
         out[i] = _height(posts, off_r, off_c, inv, west, rows, cols, n, g, hdr, lon[i],
-                         lat[i], 0.0, False)[0]
+                         lat[i])
 
 
 def heights(window: RayWindow, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
