@@ -16,8 +16,8 @@ Three parts, each printed as a table:
    (what a user meets once, on the first command after ``pip install``), then the same
    command again with that cache.
 
-``--before TREE`` also runs every command with ``PYTHONPATH=TREE/src`` (another checkout of
-geoblock, e.g. ``git worktree add /tmp/before <commit>``; the same installed plugins),
+``--before TREE`` also runs every command with ``PYTHONPATH=TREE/src:TREE/plugins/*/src``
+(another checkout of geoblock and its plugins, e.g. ``git worktree add /tmp/before <commit>``),
 interleaved with the current one, so that both are measured under the same load (the
 "before" figures of ``benchmarks/README.md``). ``PYTHONDONTWRITEBYTECODE``
 is removed from the children's environment: users have ``.pyc`` files.
@@ -184,8 +184,10 @@ def main() -> None:
     parser.add_argument("--before", type=Path, default=None,
                         help="another geoblock tree, run interleaved as '(before)'")
     args = parser.parse_args()
-    if args.before is not None:
-        VERSIONS[" (before)"] = str(args.before.resolve() / "src")
+    if args.before is not None:  # its geoblock and its plugins, ahead of the installed ones
+        tree = args.before.resolve()
+        paths = [tree / "src", *sorted(tree.glob("plugins/*/src"))]
+        VERSIONS[" (before)"] = os.pathsep.join(str(p) for p in paths)
     if not RPC.exists():
         sys.exit(f"skipped: {RPC} is absent")
     import geoblock
