@@ -23,6 +23,9 @@ refused ("vgridshift: could not find required grid(s)"), so it is not used. geob
 the original SRTM tile + EGM96 (``N`` at the point); the two surfaces differ by about 1e-6 m
 (printed). Agreement: the horizontal distance between GDAL's and geoblock's points (both
 converged), and GDAL's own back-projection residual (at the DEM height under its point).
+shareloc's C++ DTM intersection is timed too when shareloc is importable
+(:func:`shareloc_localizer`); its intersection approximates the line of sight, so its
+back-projection residual is printed beside the others.
 ``cpu ms``: the process's CPU time per call (median): geoblock's kernels run on the numba
 threads (2 here), GDAL's transformer on one.
 
@@ -111,6 +114,26 @@ def gdal_transformer(rpc_json: Path, tif: Path):
                           RPC_PIXEL_ERROR_THRESHOLD=1e-8, RPC_MAX_ITERATIONS=50)
 
 
+def shareloc_localizer(row, col):
+    """shareloc's C++ DTM intersection (``RPCoptim.direct_loc_dtm`` over
+    ``bindings_cpp.DTMIntersection``, SRTM + EGM96 through its ``dtm_reader``, voids filled by
+    ``rio_fillnodata`` as geoblock's ``nodata="fill"``), or None when shareloc is not
+    importable (install it apart: ``pip install --no-deps --target DIR shareloc``, then
+    ``PYTHONPATH=DIR``). shareloc's pixel centres are at +0.5 (its top-left convention)."""
+    try:
+        import bindings_cpp
+        from shareloc.dtm_reader import dtm_reader
+        from shareloc.geomodels import GeoModel
+    except Exception:  # noqa: BLE001 - any import failure: no peer
+        return None
+    model = GeoModel(str(GEOM), "RPCoptim")
+    dtm = dtm_reader(str(SRTM), str(GTX), roi=None, roi_is_in_physical_space=True,
+                     fill_nodata="rio_fillnodata", fill_value=0.0)
+    cpp = bindings_cpp.DTMIntersection(dtm.epsg, dtm.alt_data, dtm.nb_rows, dtm.nb_columns,
+                                       dtm.transform)
+    return lambda: model.direct_loc_dtm(row + 0.5, col + 0.5, cpp)
+
+
 def residual(model, row, col, lon, lat, h):
     (r, c), _ = model.project_with_status(lon, lat, h)
     return np.hypot(r - row, c - col)
@@ -148,6 +171,9 @@ def run(name, model, dem, n, repeat, peer_dir: Path | None) -> None:
                 warnings.simplefilter("ignore")
                 return tr.xy(row, col, zeros, offset="center")
         calls["GDAL RPC_DEM (rasterio), 1e-8 px"] = gdal_call
+        shareloc_call = shareloc_localizer(row, col)
+        if shareloc_call is not None:
+            calls["shareloc C++ direct_loc_dtm"] = shareloc_call
     results = {k: f() for k, f in calls.items()}  # warm-up
     times: dict[str, list[float]] = {k: [] for k in calls}
     cpu: dict[str, list[float]] = {k: [] for k in calls}
@@ -169,6 +195,9 @@ def run(name, model, dem, n, repeat, peer_dir: Path | None) -> None:
             ok = np.isfinite(lon) & np.isfinite(lat)
             h = np.full(n, np.nan)
             h[ok] = dem.height(lon[ok], lat[ok])
+        elif k.startswith("shareloc"):
+            lon, lat, h = (np.asarray(out[:, i], float) for i in range(3))
+            ok = np.isfinite(lon) & np.isfinite(lat) & np.isfinite(h)
         else:
             g, status = out
             lon, lat, h = g.lon, g.lat, g.h
