@@ -42,6 +42,8 @@ import numba
 import numpy as np
 
 from geoblock import coords
+from geoblock.ortho import _fused
+from geoblock.ortho._fused import _cell, _column_cells, _quadratic_weights, _row_lerp
 from geoblock.pixels import PIXEL_CENTRE, pixel_to_map
 from geoblock.typing import ArrayLike
 
@@ -94,35 +96,12 @@ _Nodes = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 # ---------------------------------------------------------------------- numba kernels
 @numba.njit(inline="always")
-def _cell(p: int, s: int, inv: float, n: int) -> tuple[int, float]:  # pragma: no cover
-    """Node cell ``k`` and fraction ``t`` of block pixel ``p`` (nodes at multiples of ``s``)."""
-    k = p // s
-    if k > n - 2:
-        k = n - 2
-    return k, (p - k * s) * inv
-
-
-@numba.njit(inline="always")
 def _lerp2(nodes: np.ndarray, kr: int, kc: int, tr: float,
            tc: float) -> float:  # pragma: no cover - compiled
     """Bilinear in a cell: along rows first (as the row kernels precompute), then columns."""
     a = nodes[kr, kc] + tr * (nodes[kr + 1, kc] - nodes[kr, kc])
     b = nodes[kr, kc + 1] + tr * (nodes[kr + 1, kc + 1] - nodes[kr, kc + 1])
     return a + tc * (b - a)
-
-
-@numba.njit(inline="always")
-def _quadratic_weights(hh: float, h0: float, dh: float,
-                       pairs: int) -> tuple[int, float, float, float]:  # pragma: no cover
-    """First level ``2 k`` and Lagrange weights of height ``hh`` on levels ``h0 + k dh``."""
-    u = (hh - h0) / dh
-    k = int(math.floor(u * 0.5))
-    if k < 0:
-        k = 0
-    elif k > pairs - 1:
-        k = pairs - 1
-    t = u - 2.0 * k
-    return 2 * k, 0.5 * (t - 1.0) * (t - 2.0), -t * (t - 2.0), 0.5 * t * (t - 1.0)
 
 
 @numba.njit(inline="always")
@@ -141,27 +120,6 @@ def _image_point(rn: np.ndarray, cn: np.ndarray, hh: float, kr: int, kc: int, tr
     vr += w2 * _lerp2(rn[lev + 2], kr, kc, tr, tc)
     vc += w2 * _lerp2(cn[lev + 2], kr, kc, tr, tc)
     return vr, vc
-
-
-@numba.njit(inline="always")
-def _row_lerp(nodes: np.ndarray, kr: int, tr: float,
-              out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """``out[..., kc]``: the nodes of rows ``kr, kr + 1`` interpolated at ``tr`` (the first
-    step of :func:`_lerp2`, shared by a whole output row)."""
-    for kc in range(nodes.shape[-1]):
-        out[kc] = nodes[kr, kc] + tr * (nodes[kr + 1, kc] - nodes[kr, kc])
-
-
-@numba.njit(nogil=True, cache=True)
-def _column_cells(c_off: int, ncols: int, s: int,
-                  n: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """:func:`_cell` of block columns ``c_off .. c_off + ncols - 1``: shared by every row."""
-    kcs = np.empty(ncols, dtype=np.int64)
-    tcs = np.empty(ncols)
-    inv = 1.0 / s
-    for j in range(ncols):
-        kcs[j], tcs[j] = _cell(c_off + j, s, inv, n)
-    return kcs, tcs
 
 
 @numba.njit(nogil=True, cache=True)
@@ -540,6 +498,29 @@ class _Block:
         out_r[sl], out_c[sl] = row[part], col[part]
 
 
+def _fill_fused(block: _Block, dem_plan: _fused.DemPlan, part: tuple[int, int, int, int],
+                dst_r: int, dst_c: int, out_r: np.ndarray, out_c: np.ndarray) -> bool:
+    """A lattice block's pixels ``part`` (block-local rows a..b, cols c..d) through the fused
+    pass, written at window pixel ``(dst_r, dst_c)``; False when the pass does not apply (the
+    reference path then runs and overwrites whatever was written)."""
+    a, b, c, d = part
+    lon_n, lat_n, rn, cn = block.nodes  # type: ignore[misc]
+    window = _fused.dem_window(dem_plan, lon_n, lat_n, block.nrows * block.ncols)
+    if window is None:
+        return False
+    sl = (slice(dst_r, dst_r + b - a), slice(dst_c, dst_c + d - c))
+    lev = block.levels(block.pairs)
+    dh = (lev[-1] - lev[0]) / (lev.size - 1)
+    done, miss = _fused.fill_block_rows(dem_plan, window, lon_n, lat_n, rn, cn, a, c,
+                                        block.spacing, float(lev[0]), float(dh), block.pairs,
+                                        out_r[sl], out_c[sl])
+    if not done:
+        return False
+    if miss:  # nodes outside the model's domain: the whole-block exact fallback
+        block.fill(out_r, out_c, a, b, c, d, dst_r, dst_c)
+    return True
+
+
 def _quadratic_in_h(vr: np.ndarray, vc: np.ndarray, h: np.ndarray, lev: np.ndarray,
                     pairs: int) -> tuple[np.ndarray, np.ndarray]:
     """Piecewise-quadratic interpolation in ``h`` of per-level values ``(levels, N)``."""
@@ -626,6 +607,7 @@ def _lattice_fields(
     seed: int = 0,
     window: tuple[slice, slice] | None = None,
     block_px: int = BLOCK_PX,
+    fused: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`source_coordinates` for any pair of smooth fields of ``(lon, lat, h)``.
 
@@ -634,6 +616,10 @@ def _lattice_fields(
     below ``SAFETY * tolerance_px`` (in the fields' units), exactly as the image coordinates
     are. The accuracy layer (:mod:`geoblock.ortho.accuracy`) passes a context whose fields are
     the logarithm of the predicted error (a relative tolerance) and 0.
+
+    ``fused``: lattice blocks go through :mod:`geoblock.ortho._fused`'s one-pass kernel when
+    the DEM allows it (bit-identical); False forces the reference path (separate lon/lat,
+    DEM and interpolation passes over strips), for the tests that compare them.
     """
     shape = ctx.shape
     rs, cs = window if window is not None else (None, None)
@@ -645,6 +631,7 @@ def _lattice_fields(
     if out_r.size == 0:
         return out_r, out_c, np.zeros(out_r.shape, bool)
     B = int(block_px)
+    dem_plan = _fused.plan(ctx.dem) if fused and type(ctx).height is _Context.height else None
     # Per row of blocks: each block takes its decision; lattice blocks then go strip by strip
     # (STRIP_ROWS rows: the strip's lon/lat, heights and coordinates stay in the CPU cache),
     # interpolating their pixels' lon/lat into strip-wide arrays, the DEM sampled once per
@@ -665,6 +652,13 @@ def _lattice_fields(
                 blank.append(slice(lo_c - c0, hi_c - c0))
         if not pending:
             continue
+        if dem_plan is not None:  # the fused pass, block by block; the others below
+            pending = [(block, part) for block, part in pending
+                       if not _fill_fused(block, dem_plan, part, lo_r - r0,
+                                          block.c0 + part[2] - c0, out_r, out_c)]
+            if not pending:
+                continue
+            blank = [slice(0, c1 - c0)]  # lon/lat only where a pending block writes them
         for s_lo in range(lo_r, hi_r, STRIP_ROWS):
             s_hi = min(s_lo + STRIP_ROWS, hi_r)
             lon_s = np.empty((s_hi - s_lo, c1 - c0))
