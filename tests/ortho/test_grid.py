@@ -314,3 +314,28 @@ def test_check_refuses_impossible_grids():
     with pytest.raises(GridError) as info:
         OutputGrid.from_bounds("EPSG:32632", (0.0, 0.0, 1.0, 1.0), 0.0)
     assert info.value.parameter == "resolution"
+
+
+def test_oversampling_gsd_height_needs_no_ray_intersection():
+    """check_oversampling's height (a few fixed-point steps on the DEM, no localize kernels)
+    gives the GSD at localize's height to 1e-6 over rough terrain."""
+    from geoblock_rpc import RpcModel
+
+    from geoblock.dem import GridDem
+    from geoblock.dem.intersect import localize
+    from geoblock.ortho.grid import _centre_height, _gsd
+
+    model = RpcModel.example()
+    rng = np.random.default_rng(7)
+    dem = GridDem(rng.uniform(200.0, 1400.0, (40, 40)),
+                  Affine(0.004, 0.0, 7.05 - 0.08, 0.0, -0.004, 43.70 + 0.08), "EPSG:4326")
+    rows, cols = model.shape
+    rc, cc = (rows - 1) / 2.0, (cols - 1) / 2.0
+    h = _centre_height(model, rc, cc, dem)
+    lo, hi = dem.height_range(dem.bounds)
+    assert lo <= h <= hi
+    exact, _ = localize(model, rc, cc, dem, warn=False)
+    crs = "EPSG:32632"
+    g_fast = _gsd(model, rc, cc, h, pyproj.CRS(crs))
+    g_exact = _gsd(model, rc, cc, float(exact.h), pyproj.CRS(crs))
+    assert abs(g_fast / g_exact - 1) < 1e-6
