@@ -189,7 +189,7 @@ def _column_cells(c_off: int, ncols: int, s: int,
     return kcs, tcs
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.ndarray,
                    r_off: int, c_off: int, s: int, h0: float, dh: float, pairs: int,
                    inv: np.ndarray, west: float, rows: int, cols: int, n: int,
@@ -214,6 +214,7 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
     lr = np.empty((nlev, nc))
     lc = np.empty((nlev, nc))
     kcs, tcs = _column_cells(c_off, ncols, s, nc)
+    hrow = np.empty(ncols)  # one output row's heights (the rows' two steps share it)
     miss = 0
     for i in range(nrows):
         kr, tr = _cell(r_off + i, s, inv_s, nr)
@@ -258,6 +259,11 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
                                                g_lat0, g_dlat, g_global)
                 elif strict:
                     return -1
+            hrow[j] = hh
+        for j in range(ncols):
+            kc = kcs[j]
+            tc = tcs[j]
+            hh = hrow[j]
             if not np.isfinite(hh):
                 row_out[i, j] = np.nan
                 col_out[i, j] = np.nan
