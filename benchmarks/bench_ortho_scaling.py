@@ -162,7 +162,7 @@ def _chunk_rss(task: tuple, warm_args: tuple) -> tuple:
     with ThreadPoolExecutor(1) as pool:
         pool.submit(task[0], *task[1:]).result()
     after = _proc_status_kib("VmHWM")
-    from geoblock.dem.raster import BLOCK_CACHE
+    from geoblock.dem.cache import BLOCK_CACHE
 
     return (None if before is None else before * 1024, None if after is None else after * 1024,
             BLOCK_CACHE.nbytes, len(BLOCK_CACHE))

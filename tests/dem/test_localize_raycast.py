@@ -22,7 +22,7 @@ import geoblock
 from geoblock import ParameterSet, SensorModelBase, Status
 from geoblock.dem import _raycast as raycast
 from geoblock.dem import intersect
-from geoblock.dem.raster import ArrayDem
+from geoblock.dem.array import ArrayDem
 
 RES = 1e-4  # degrees (about 8 x 11 m)
 # the straight-ray camera of test_localize.py (a module of its own: tests import nothing

@@ -9,7 +9,8 @@ from affine import Affine
 
 from geoblock.dem import raster as raster_mod
 from geoblock.dem._reference import pixel_coords_reference, sample_reference
-from geoblock.dem.raster import BLOCK_CACHE, RasterDem
+from geoblock.dem.cache import BLOCK_CACHE
+from geoblock.dem.raster import RasterDem
 from geoblock.ortho import lattice
 from geoblock.pixels import pixel_to_map
 

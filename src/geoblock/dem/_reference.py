@@ -11,8 +11,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from geoblock.dem.cache import BLOCK_CACHE
 from geoblock.dem.grid import lonlat_to_crs
-from geoblock.dem.raster import _HALO, BLOCK_CACHE, RasterDem
+from geoblock.dem.raster import _HALO, RasterDem
 from geoblock.dem.sampling import _keys, sample
 from geoblock.pixels import PIXEL_CENTRE, inside_image, map_to_pixel
 

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 from affine import Affine
 
+from geoblock.dem.array import tile_from_dict
 from geoblock.dem.base import DemBase
 from geoblock.dem.protocol import Bounds
-from geoblock.dem.raster import RasterDem, _fmt_bounds, _heights_on_grid, tile_from_dict
+from geoblock.dem.raster import RasterDem, _fmt_bounds, _heights_on_grid
 from geoblock.errors import DemCoverageError, DemError
 
 __all__ = ["MosaicDem"]

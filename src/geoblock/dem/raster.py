@@ -1,18 +1,21 @@
 """File DEMs through rasterio: GeoTIFF, SRTM ``.hgt``, VRT, any GDAL raster; tiles mosaicked.
 
 :class:`RasterDem` samples one raster file (its compiled block kernels are in
-:mod:`geoblock.dem.sampling`); :class:`~geoblock.dem.mosaic.MosaicDem` a list of them (each point
-takes the first tile that has a height). Users normally call :func:`geoblock.open_dem`.
+:mod:`geoblock.dem.sampling`, its block cache in :mod:`geoblock.dem.cache`; the in-memory
+:class:`~geoblock.dem.array.ArrayDem` is a subclass); :class:`~geoblock.dem.mosaic.MosaicDem`
+a list of them (each point takes the first tile that has a height). Users normally call
+:func:`geoblock.open_dem`.
 
 Reading
     The raster is read in square blocks (512 x 512 pixels, or the whole raster when it is at
     most 2048 x 2048) with a 2-pixel halo, so that every nearest/bilinear/bicubic kernel of a
     point lies inside one block. Blocks go to one process-wide, thread-safe LRU cache
-    (:data:`BLOCK_CACHE`, 256 MB by default, ``GEOBLOCK_DEM_CACHE_MB``) shared by every
-    ``RasterDem`` of the same file and options, hence by every call and every dask task in a
-    worker. Past the raster's outer edge the block repeats the edge pixels, and the points of
-    the half pixel between the outermost pixel centres and the raster edge are sampled at the
-    outermost centre (edge extension, which is what GDAL's warper gives for bilinear there).
+    (:data:`~geoblock.dem.cache.BLOCK_CACHE`, 256 MB by default, ``GEOBLOCK_DEM_CACHE_MB``)
+    shared by every ``RasterDem`` of the same file and options, hence by every call and every
+    dask task in a worker. Past the raster's outer edge the block repeats the edge pixels, and
+    the points of the half pixel between the outermost pixel centres and the raster edge are
+    sampled at the outermost centre (edge extension, which is what GDAL's warper gives for
+    bilinear there).
 
 Vertical datum
     Heights come out above the WGS84 ellipsoid. ``vertical=None`` takes the datum from the
@@ -34,13 +37,10 @@ Nodata
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 import threading
-from collections import OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,7 @@ from geoblock._affine import apply as affine_apply
 from geoblock._array import finite_bounds
 from geoblock.dem._raycast import RayWindow
 from geoblock.dem.base import DemBase
+from geoblock.dem.cache import BLOCK_CACHE
 from geoblock.dem.geoid import Geoid, find_geoid
 from geoblock.dem.grid import _is_lonlat, box_window, lonlat_to_crs
 from geoblock.dem.protocol import Bounds
@@ -76,8 +77,7 @@ API_DATUM_HINT = (
     "open_dem(path, vertical='geoid'); or give the file a compound CRS such as "
     "EPSG:4326+5773")
 
-__all__ = ["API_DATUM_HINT", "BLOCK_CACHE", "VERTICALS", "ArrayDem", "BlockCache", "RasterDem",
-           "file_vertical"]
+__all__ = ["API_DATUM_HINT", "VERTICALS", "RasterDem", "file_vertical"]
 
 VERTICALS = ("ellipsoid", "geoid")
 """Accepted values of ``vertical=`` (besides ``None``: from the file)."""
@@ -92,63 +92,6 @@ _STRIP_PIXELS = 1 << 22  # pixels per read when scanning a window for statistics
 #: largest window (posts) :meth:`RasterDem._ray_window` assembles for the compiled scan
 _RAY_WINDOW_POSTS = 1 << 22
 
-
-# ---------------------------------------------------------------------------- block cache
-class BlockCache:
-    """A thread-safe LRU cache of DEM blocks, bounded in bytes.
-
-    Parameters
-    ----------
-    max_bytes : int
-        Budget; least recently used blocks are dropped beyond it.
-    """
-
-    def __init__(self, max_bytes: int) -> None:
-        self.max_bytes = int(max_bytes)
-        self._data: OrderedDict[Any, np.ndarray] = OrderedDict()
-        self._bytes = 0
-        self._lock = threading.Lock()
-        self.hits = 0
-        self.misses = 0
-
-    def get(self, key: Any, load: Callable[[], np.ndarray]) -> np.ndarray:
-        """The block under ``key``, loaded by ``load()`` (outside the lock) when missing."""
-        with self._lock:
-            found = self._data.get(key)
-            if found is not None:
-                self._data.move_to_end(key)
-                self.hits += 1
-                return found
-            self.misses += 1
-        block = load()
-        block.flags.writeable = False
-        with self._lock:
-            if key not in self._data:
-                self._data[key] = block
-                self._bytes += block.nbytes
-                while self._bytes > self.max_bytes and len(self._data) > 1:
-                    _, old = self._data.popitem(last=False)
-                    self._bytes -= old.nbytes
-            return self._data[key]
-
-    def clear(self) -> None:
-        """Drop every block and reset the counters."""
-        with self._lock:
-            self._data.clear()
-            self._bytes = 0
-            self.hits = self.misses = 0
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes held."""
-        return self._bytes
-
-    def __len__(self) -> int:
-        return len(self._data)
-
-
-BLOCK_CACHE = BlockCache(int(float(os.environ.get("GEOBLOCK_DEM_CACHE_MB", "256")) * 2**20))
-"""The process-wide DEM block cache shared by every :class:`RasterDem`."""
 
 _stats: dict[Any, tuple[float, float, int, int]] = {}  # full-raster statistics, per file+options
 _stats_lock = threading.Lock()
@@ -831,181 +774,11 @@ class RasterDem(DemBase):
                 f"{self._vertical}, {self._interpolation}>")
 
 
-# ---------------------------------------------------------------------------- ArrayDem
-class ArrayDem(RasterDem):
-    """A height grid in memory, sampled exactly as :class:`RasterDem` samples a file.
-
-    The same blocks, kernels, edge extension, nodata policies and vertical datum rules as a
-    ``RasterDem`` of a file holding the same pixels, so the heights are identical to that
-    file's. Users normally call ``geoblock.open_dem(array, transform=..., crs=...)``, or
-    ``open_dem`` with an ``xarray.DataArray`` or an in-memory rasterio dataset.
-
-    Parameters
-    ----------
-    heights : array_like, (R, C) or (1, R, C)
-        The posts as stored, any real numeric dtype (kept as a read-only view, not copied).
-    transform : affine.Affine or sequence of 6
-        GDAL geotransform of the array (pixel corners), rasterio order.
-    crs : pyproj.CRS, rasterio CRS, str or int
-        CRS of the grid; a compound CRS may state the vertical datum (as a file's does).
-    nodata_value : float, optional
-        The value marking posts without a height (NaN always does).
-    scale, offset : float
-        Heights are ``stored * scale + offset`` (a file's band scale and offset).
-    driver : str
-        The GDAL driver the pixels come from (``"SRTMHGT"`` states EGM96 heights); default
-        ``"MEM"``.
-    name : str, optional
-        What to call the DEM in messages.
-    vertical, geoid, nodata, interpolation, strict, fill_distance
-        As :class:`RasterDem`.
-
-    Raises
-    ------
-    DemError
-        Not a 2-D numeric array, no or degenerate geotransform, no or unreadable CRS, an
-        invalid option, or a vertical datum stated neither by the CRS nor by ``vertical=``.
-    """
-
-    def __init__(
-        self,
-        heights: Any,
-        transform: Affine | Sequence[float],
-        crs: Any,
-        *,
-        nodata_value: float | None = None,
-        scale: float = 1.0,
-        offset: float = 0.0,
-        driver: str = "MEM",
-        name: str | None = None,
-        vertical: str | None = None,
-        geoid: Geoid | str | os.PathLike[str] | None = None,
-        nodata: str | float = "nan",
-        interpolation: str = "bilinear",
-        strict: bool = False,
-        fill_distance: int = 100,
-    ) -> None:
-        arr = np.asarray(heights)
-        if arr.ndim == 3 and arr.shape[0] == 1:
-            arr = arr[0]
-        if arr.ndim != 2 or min(arr.shape) < 1 or arr.dtype.kind not in "iuf":
-            raise DemError(f"{name or 'in-memory DEM'}: heights must be a non-empty 2-D array "
-                           f"of numbers, got shape {np.shape(heights)} and dtype {arr.dtype}")
-        # an own read-only copy: a caller changing its array afterwards must not change
-        # heights behind the block cache and the digest
-        own = np.array(arr, copy=arr.flags.writeable)
-        own.flags.writeable = False
-        self._array = own
-        rows, cols = arr.shape
-        self._path = name or f"<in-memory {rows} x {cols} DEM>"
-        self._set_options(vertical, nodata, interpolation, strict, 1, fill_distance)
-        if transform is None:
-            raise DemError(f"DEM {self._path}: a geotransform is needed (transform=)")
-        t = transform if isinstance(transform, Affine) else Affine(*tuple(transform)[:6])
-        if t.b != 0.0 or t.d != 0.0 or t.a == 0.0 or t.e == 0.0:
-            raise DemError(
-                f"DEM {self._path}: the geotransform {tuple(t)[:6]} is rotated or degenerate; "
-                "an in-memory DEM needs a north-up transform in rasterio order (a, b, c, d, "
-                "e, f) = (x step, 0, x of the corner, 0, y step, y of the corner); GDAL's "
-                "GetGeoTransform() order is (c, a, b, f, d, e): use Affine.from_gdal(*gt)")
-        self._set_raster(driver=driver, shape=(rows, cols), transform=t,
-                         crs=_crs_of(crs, self._path), file_nodata=nodata_value,
-                         dtype=arr.dtype, scale=scale, offset=offset, tags={})
-        self._digest = _digest(arr)
-        self._finish(vertical, geoid, ("array", self._digest, tuple(t)[:6],
-                                       self._file_nodata, self._scale, self._offset))
-
-    @property
-    def path(self) -> str:
-        """The DEM's name (an in-memory DEM has no file)."""
-        return self._path
-
-    @property
-    def array(self) -> np.ndarray:
-        """(R, C) the posts as given (read-only)."""
-        return self._array
-
-    def _read_raw(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
-        return self._array[r0:r1, c0:c1]
-
-    def _state(self) -> dict[str, Any]:
-        """Everything but the posts (JSON-safe)."""
-        return {
-            "dem": "array",
-            "name": self._path,
-            "transform": [float(v) for v in tuple(self._transform)[:6]],
-            "crs": self._crs.to_wkt(),
-            "nodata_value": self._file_nodata,
-            "scale": self._scale,
-            "offset": self._offset,
-            "driver": self._driver,
-            "vertical": self._vertical,
-            "geoid": None if self._geoid is None else self._geoid.path,
-            "nodata": self._nodata_policy,
-            "interpolation": self._interpolation,
-            "strict": self._strict,
-            "fill_distance": self._fill_distance,
-        }
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe, with the posts (``heights``, rows of numbers, None for NaN, and their
-        ``dtype``): large; pickling and dask tokens do not go through it."""
-        out = self._state()
-        out["dtype"] = self._array.dtype.str
-        out["heights"] = [[None if v != v else v for v in row] for row in self._array.tolist()]
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> ArrayDem:
-        """The DEM of :meth:`to_dict`."""
-        heights = np.array([[np.nan if v is None else v for v in row] for row in data["heights"]],
-                           dtype=np.dtype(data.get("dtype", "<f8")))
-        opts = {k: v for k, v in data.items()
-                if k not in ("dem", "heights", "dtype", "transform", "crs")}
-        return cls(heights, data["transform"], data["crs"], **opts)
-
-    def _identity(self) -> str:
-        return json.dumps({**self._state(), "digest": self._digest}, sort_keys=True)
-
-    def __eq__(self, other: object) -> bool:
-        if type(other) is not type(self):
-            return NotImplemented
-        return self._identity() == other._identity()
-
-    def __hash__(self) -> int:
-        return hash(self._identity())
-
-    def __dask_tokenize__(self) -> tuple[str, str]:
-        return (type(self).__name__, self._identity())
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        state = self._state()
-        return (_rebuild_array_dem, (self._array, state))
-
-    def __repr__(self) -> str:
-        rows, cols = self._shape
-        return (f"<ArrayDem {self._path} {rows}x{cols} {self._crs.name!r} heights above the "
-                f"{self._vertical}, {self._interpolation}>")
-
-
-def _rebuild_array_dem(heights: np.ndarray, state: dict[str, Any]) -> ArrayDem:
-    opts = {k: v for k, v in state.items() if k not in ("dem", "transform", "crs")}
-    return ArrayDem(heights, state["transform"], state["crs"], **opts)
-
-
 def _max_step(array: np.ndarray, axis: int) -> float:
     """Largest ``|difference|`` between neighbours along ``axis`` (NaN ignored; 0 if none)."""
     with np.errstate(invalid="ignore"):
         d = np.abs(np.diff(array, axis=axis))
     return float(np.nanmax(d)) if np.isfinite(d).any() else 0.0
-
-
-def _digest(array: np.ndarray) -> str:
-    """A hash of an array's values, dtype and shape (the block cache's key for its pixels)."""
-    h = hashlib.blake2b(digest_size=16)
-    h.update(f"{array.dtype.str}{array.shape}".encode())
-    h.update(np.ascontiguousarray(array).data)
-    return h.hexdigest()
 
 
 def _crs_of(crs: Any, name: str) -> pyproj.CRS:
@@ -1019,13 +792,6 @@ def _crs_of(crs: Any, name: str) -> pyproj.CRS:
         return pyproj.CRS.from_user_input(crs)
     except pyproj.exceptions.CRSError as exc:
         raise DemError(f"DEM {name}: {crs!r} is not a CRS pyproj knows: {exc}") from None
-
-
-def tile_from_dict(data: Mapping[str, Any]) -> RasterDem:
-    """A :class:`RasterDem` or :class:`ArrayDem` from its ``to_dict()``."""
-    if data.get("dem") == "array":
-        return ArrayDem.from_dict(data)
-    return RasterDem.from_dict(dict(data))
 
 
 # ---------------------------------------------------------------------------- helpers

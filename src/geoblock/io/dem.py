@@ -83,15 +83,15 @@ def open_dem(
         * a DEM object (any :class:`~geoblock.dem.DemSource`), returned as it is;
         * an open rasterio dataset: a file dataset is re-opened by its name (the DEM its path
           gives, read window by window); an in-memory one (``MemoryFile``, ``MEM`` driver) is
-          read into an :class:`~geoblock.dem.raster.ArrayDem` (band 1);
+          read into an :class:`~geoblock.dem.array.ArrayDem` (band 1);
         * an ``xarray.DataArray`` ``(y, x)`` or ``(1, y, x)``: its values (a dask-backed
           array is computed once) with the CRS, geotransform and nodata it states the way
           rioxarray writes them (a ``spatial_ref`` coordinate with ``crs_wkt`` and
           ``GeoTransform``, ``_FillValue``; see
           :func:`~geoblock.io.rasters.dataarray_georeferencing`), as an
-          :class:`~geoblock.dem.raster.ArrayDem`;
+          :class:`~geoblock.dem.array.ArrayDem`;
         * a numpy array ``(R, C)`` with ``transform=`` and ``crs=``: an
-          :class:`~geoblock.dem.raster.ArrayDem`.
+          :class:`~geoblock.dem.array.ArrayDem`.
 
         An in-memory DEM gives exactly the heights a file of the same pixels gives.
     vertical : {"geoid", "ellipsoid"} or None
@@ -130,7 +130,7 @@ def open_dem(
     Returns
     -------
     DemSource
-        :class:`~geoblock.dem.RasterDem`, :class:`~geoblock.dem.raster.ArrayDem`,
+        :class:`~geoblock.dem.RasterDem`, :class:`~geoblock.dem.array.ArrayDem`,
         :class:`~geoblock.dem.MosaicDem`, :class:`~geoblock.dem.ConstantDem`,
         :class:`~geoblock.dem.ConstantGeoidDem`, :class:`~geoblock.dem.FilledDem` or the
         DEM object given.
@@ -152,8 +152,8 @@ def open_dem(
     """
     from geoblock.dem.base import DemBase
     from geoblock.dem.filled import FilledDem
-    from geoblock.dem.protocol import DemSource
     from geoblock.dem.mosaic import MosaicDem
+    from geoblock.dem.protocol import DemSource
     from geoblock.dem.raster import VERTICALS
 
     if missing is not None:
@@ -229,7 +229,8 @@ class _Options:
     def tile(self, source: Any, *, strict: bool | None = None, transform: Any = None,
              crs: Any = None, nodata_value: float | None = None) -> RasterDem:
         """A :class:`RasterDem` (file) or :class:`ArrayDem` (pixels in memory) of ``source``."""
-        from geoblock.dem.raster import ArrayDem, RasterDem
+        from geoblock.dem.array import ArrayDem
+        from geoblock.dem.raster import RasterDem
 
         options = dict(self.common, strict=self.strict if strict is None else strict)
         if isinstance(source, str | os.PathLike):
@@ -298,11 +299,12 @@ def _constant(text: str, vertical: str | None, geoid: Any) -> DemSource:
 
 
 def _from_dict(data: Mapping[str, Any]) -> DemSource:
+    from geoblock.dem.array import ArrayDem
     from geoblock.dem.constant import ConstantDem
     from geoblock.dem.filled import FilledDem
     from geoblock.dem.geoid import ConstantGeoidDem, find_geoid
     from geoblock.dem.mosaic import MosaicDem
-    from geoblock.dem.raster import ArrayDem, RasterDem
+    from geoblock.dem.raster import RasterDem
 
     kind = data.get("dem")
     try:
