@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from geoblock_rpc import RpcModel, _kernels
+from geoblock_rpc import RpcModel, _kernels, _small
 from geoblock_rpc.model import PARALLEL_MIN_POINTS
 
 from geoblock import Status
@@ -212,7 +212,8 @@ def test_out_refuses_read_only_and_overlapping_arrays():
         model.project_with_status(lon, lat, h, out=(lon, col, status))
 
 
-@pytest.mark.parametrize("kernel", [_kernels.project, _kernels.project_serial])
+@pytest.mark.parametrize("kernel", [_kernels.project, _kernels.project_serial,
+                                    _small.project])
 def test_a_zero_denominator_is_diverged_in_both_kernels(kernel):
     """numpy's error model: the serial kernel used to raise ZeroDivisionError here."""
     model = RpcModel.example()

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from geoblock_rpc import _kernels
+from geoblock_rpc import _kernels, _small
 from geoblock_rpc.model import PARALLEL_MIN_POINTS, RpcModel
 from geoblock_rpc.rpc00b import Rpc00b
 
@@ -184,7 +184,8 @@ def test_points_far_outside_any_domain_are_never_converged(n):
     assert np.all(status[inside] == Status.CONVERGED)
 
 
-@pytest.mark.parametrize("kernel", [_kernels.project, _kernels.project_serial])
+@pytest.mark.parametrize("kernel", [_kernels.project, _kernels.project_serial,
+                                    _small.project])
 def test_both_kernels_refuse_huge_longitudes_before_wrapping(kernel):
     model = RpcModel.example()
     lon = np.array([7.05, 1e300, -1e300, 1e20, 7.05 + 720.0])

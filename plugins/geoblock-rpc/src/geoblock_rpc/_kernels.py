@@ -24,37 +24,44 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from geoblock_rpc._params import (  # noqa: F401 - re-exported: the kernels' constants
+    CONVERGED,
+    DIVERGED,
+    HAS_BOX,
+    HEIGHT_LIMIT,
+    HEIGHT_OFF,
+    HEIGHT_SCALE,
+    INVALID_INPUT,
+    LAT_OFF,
+    LAT_SCALE,
+    LIMIT,
+    LINE_OFF,
+    LINE_SCALE,
+    LON_LIMIT,
+    LONG_OFF,
+    LONG_SCALE,
+    MAX_ITERATIONS,
+    MAX_LAT,
+    MAX_LONG,
+    MIN_LAT,
+    MIN_LONG,
+    N_PRM,
+    OUT_OF_DOMAIN,
+    SAMP_OFF,
+    SAMP_SCALE,
+    pack,
+)
+from geoblock_rpc._params import INV360 as _INV360
+
 # contract (FMA) and reassociation only: NaN and inf must keep their meaning. Only the
 # partials use them: with them the prange and serial loops of projection and localisation
 # compile to different roundings, and results must not depend on the thread a batch runs on
 # (tested; measured cost: none for projection, ~12 % for localisation).
 _FASTMATH = {"contract", "reassoc", "nsz", "arcp"}
 
-# indices into prm
-LAT_OFF, LONG_OFF, HEIGHT_OFF, LAT_SCALE, LONG_SCALE, HEIGHT_SCALE = range(6)
-LINE_OFF, SAMP_OFF, LINE_SCALE, SAMP_SCALE, LIMIT = range(6, 11)
-MIN_LONG, MAX_LONG, MIN_LAT, MAX_LAT, HAS_BOX, HEIGHT_LIMIT = range(11, 17)
-N_PRM = 17
-
-CONVERGED, MAX_ITERATIONS, DIVERGED, OUT_OF_DOMAIN, INVALID_INPUT = 0, 1, 2, 3, 6
 
 #: points per block of the projection and localisation loops (a parallel task each)
 CHUNK = 4096
-
-
-def pack(
-    rpc, limit: float, height_limit: float, box: tuple[float, float, float, float] | None
-) -> np.ndarray:
-    """The constants array of a :class:`~geoblock_rpc.Rpc00b` for the kernels."""
-    prm = np.zeros(N_PRM)
-    prm[HEIGHT_LIMIT] = height_limit
-    prm[:11] = (rpc.lat_off, rpc.long_off, rpc.height_off, rpc.lat_scale, rpc.long_scale,
-                rpc.height_scale, rpc.line_off, rpc.samp_off, rpc.line_scale, rpc.samp_scale,
-                limit)
-    if box is not None:
-        prm[MIN_LONG:MAX_LAT + 1] = box
-        prm[HAS_BOX] = 1.0
-    return prm
 
 
 @njit(inline="always")
@@ -166,11 +173,6 @@ def _ratio_lp(cn, cd, L, P, H):
     return r, (n_l - r * d_l) / d, (n_p - r * d_p) / d
 
 
-#: longitudes beyond this magnitude are no position on the Earth in any convention
-#: (-180..180, 0..360, and unwrapped tracks up to half a turn beyond): OUT_OF_DOMAIN
-LON_LIMIT = 540.0
-
-
 @njit(inline="always")
 def _off_earth(lon, lat):
     """Whether (lon, lat) is no place on the Earth: wrapping such a longitude modulo 360
@@ -205,12 +207,6 @@ def _wrap_dlon(lon, long_off):
     return d - 360.0 * np.floor((d + 180.0) / 360.0)
 
 
-#: 1/360 for the longitude wraps of the projection: a product where the quotient would be
-#: the slowest instruction of the loop. For every point of a model's domain ``(d + 180) / 360``
-#: lies in (0, 1) either way, so the floor is 0 and the wrapped value the same bits; only a
-#: point 180 degrees away from the reference (far outside any domain) may wrap to -180 instead
-#: of +180, the same place.
-_INV360 = 1.0 / 360.0
 _INF = np.inf
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 import threading
 from collections.abc import Mapping
 from typing import Any, ClassVar, Self
@@ -13,7 +14,7 @@ from geoblock import GroundCoords, ImageCoords, ParameterSet, SensorModelBase, c
 from geoblock.errors import ModelFormatError, SerializationError
 from geoblock.models import broadcast_float64, image_shape
 from geoblock.typing import ArrayLike, Float64Array
-from geoblock_rpc import _kernels
+from geoblock_rpc import _params, _small
 from geoblock_rpc.rpc00b import MAX_PIXELS, Rpc00b
 
 __all__ = ["RpcModel"]
@@ -25,6 +26,36 @@ HEIGHT_MARGIN_M = 1500.0
 
 #: batches smaller than this run on the calling thread (numba's pool has a launch cost)
 PARALLEL_MIN_POINTS = 32768
+
+
+#: batches of at most this many points are projected in numpy (:mod:`geoblock_rpc._small`, the
+#: compiled kernel's bits) while the process has not imported numba: 65536 points take 12 ms in
+#: numpy, the kernel's first call 0.28 s for numba's import and registries (issue 30)
+SMALL_BATCH_MAX = 65536
+
+#: points a process projects in numpy in all before it loads the kernels anyway: ~0.19 s of
+#: numpy (190 ns per point against 7 in the kernel), less than the kernels' start-up it saves,
+#: so a process of many small batches pays at most about twice the start-up (rent or buy)
+SMALL_BUDGET_POINTS = 1 << 20
+
+_small_points = 0  # points projected in numpy so far (races between threads only blur it)
+
+
+def _use_numpy(n: int) -> bool:
+    """Whether a projection of ``n`` points runs in numpy rather than the compiled kernel.
+
+    Both give the same bits (tested), so the choice changes speed only: numpy for small
+    batches while numba is not imported (:data:`SMALL_BATCH_MAX`, :data:`SMALL_BUDGET_POINTS`),
+    the kernel once it is (its start-up is then mostly paid, and it is 20-30x faster at every
+    size).
+    """
+    global _small_points
+    if n > SMALL_BATCH_MAX or "numba" in sys.modules:
+        return False
+    if _small_points + n > SMALL_BUDGET_POINTS:
+        return False
+    _small_points += n
+    return True
 
 
 def parallel_ok(n: int) -> bool:
@@ -180,7 +211,7 @@ class RpcModel(SensorModelBase):
         vertical = max(self._height_limit, 1.0 + self._height_margin_m / scale)
         self._valid_heights = (rpc.height_off - vertical * scale,
                                rpc.height_off + vertical * scale)
-        self._prm = _kernels.pack(rpc, self._domain_limit, vertical, box)
+        self._prm = _params.pack(rpc, self._domain_limit, vertical, box)
         self._coef = np.ascontiguousarray(rpc.coefficients)
 
     @classmethod
@@ -329,7 +360,11 @@ class RpcModel(SensorModelBase):
         *,
         out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     ) -> tuple[ImageCoords, np.ndarray]:
-        """Ground -> image in one fused numba pass (NaN handling and status included).
+        """Ground -> image in one fused pass (NaN handling and status included).
+
+        Large batches, and every batch once numba is imported, run the compiled kernel; small
+        ones in a process without numba run its numpy twin (:mod:`geoblock_rpc._small`), which
+        gives the same bits and spares a short command numba's 0.28 s of start-up.
 
         Parameters
         ----------
@@ -359,8 +394,13 @@ class RpcModel(SensorModelBase):
         else:
             result = _out_arrays(out, shape, [x, y, z], ("row", "col", "status"))
         row, col, status = (a.reshape(-1) for a in result)
-        kernel = _kernels.project if parallel_ok(x.size) else _kernels.project_serial
-        kernel(x, y, z, self._prm, self._coef, row, col, status)
+        if _use_numpy(x.size):
+            _small.project(x, y, z, self._prm, self._coef, row, col, status)
+        else:
+            from geoblock_rpc import _kernels  # numba: 0.28 s on the first use in a process
+
+            kernel = _kernels.project if parallel_ok(x.size) else _kernels.project_serial
+            kernel(x, y, z, self._prm, self._coef, row, col, status)
         return ImageCoords(result[0], result[1]), result[2]
 
     def backproject_with_status(
@@ -407,6 +447,8 @@ class RpcModel(SensorModelBase):
             result = _out_arrays(out, shape, [r, c, z], ("lon", "lat", "h", "status"))
             np.copyto(result[2], z.reshape(shape))
         lon, lat, h_out, status = (a.reshape(-1) for a in result)
+        from geoblock_rpc import _kernels
+
         kernel = _kernels.localise if parallel_ok(r.size) else _kernels.localise_serial
         kernel(r, c, z, self._prm, self._coef, self.localisation_tolerance_px,
                self.localisation_stall_px, self.localisation_max_iterations, lon, lat, status)
@@ -426,6 +468,8 @@ class RpcModel(SensorModelBase):
         """Analytic d(row, col)/d(lon, lat, h): (*S, 2, 3), pixels per degree and per metre."""
         shape, (x, y, z) = _flat(lon, lat, h, names=("lon", "lat", "h"))
         out = np.empty((x.size, 2, 3))
+        from geoblock_rpc import _kernels
+
         kernel = (_kernels.partials_geodetic if parallel_ok(x.size)
                   else _kernels.partials_geodetic_serial)
         kernel(x, y, z, self._prm, self._coef, out)
