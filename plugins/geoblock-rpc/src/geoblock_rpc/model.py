@@ -30,12 +30,14 @@ PARALLEL_MIN_POINTS = 32768
 
 #: batches of at most this many points are projected in numpy (:mod:`geoblock_rpc._small`, the
 #: compiled kernel's bits) while the process has not imported numba: 65536 points take 12 ms in
-#: numpy, the kernel's first call 0.28 s for numba's import and registries (issue 30)
+#: numpy (16 MB of temporaries), a process's first kernel call 0.28 s (numba's import and
+#: registries; 0.5 s more per whole process, benchmarks/README.md, Start-up)
 SMALL_BATCH_MAX = 65536
 
-#: points a process projects in numpy in all before it loads the kernels anyway: ~0.19 s of
-#: numpy (190 ns per point against 7 in the kernel), less than the kernels' start-up it saves,
-#: so a process of many small batches pays at most about twice the start-up (rent or buy)
+#: points a process projects in numpy in all before it loads the kernels anyway: ~0.2 s of
+#: numpy (190 ns per point against 7 in the warm kernel), less than the kernels' start-up it
+#: saves, so a process of many small batches pays at most about twice the start-up (rent or
+#: buy)
 SMALL_BUDGET_POINTS = 1 << 20
 
 _small_points = 0  # points projected in numpy so far (races between threads only blur it)
@@ -364,7 +366,7 @@ class RpcModel(SensorModelBase):
 
         Large batches, and every batch once numba is imported, run the compiled kernel; small
         ones in a process without numba run its numpy twin (:mod:`geoblock_rpc._small`), which
-        gives the same bits and spares a short command numba's 0.28 s of start-up.
+        gives the same bits and spares a short command numba's 0.3-0.5 s of start-up.
 
         Parameters
         ----------
@@ -397,7 +399,7 @@ class RpcModel(SensorModelBase):
         if _use_numpy(x.size):
             _small.project(x, y, z, self._prm, self._coef, row, col, status)
         else:
-            from geoblock_rpc import _kernels  # numba: 0.28 s on the first use in a process
+            from geoblock_rpc import _kernels  # numba: 0.3-0.5 s on the first use in a process
 
             kernel = _kernels.project if parallel_ok(x.size) else _kernels.project_serial
             kernel(x, y, z, self._prm, self._coef, row, col, status)
