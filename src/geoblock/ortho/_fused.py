@@ -214,7 +214,9 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
     lr = np.empty((nlev, nc))
     lc = np.empty((nlev, nc))
     kcs, tcs = _column_cells(c_off, ncols, s, nc)
-    hrow = np.empty(ncols)  # one output row's heights (the rows' two steps share it)
+    hrow = np.empty(ncols)  # one output row's heights (the row's steps share these)
+    lon_row = np.empty(ncols)
+    lat_row = np.empty(ncols)
     miss = 0
     for i in range(nrows):
         kr, tr = _cell(r_off + i, s, inv_s, nr)
@@ -223,14 +225,18 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
         for m in range(nlev):
             _row_lerp(rn[m], kr, tr, lr[m])
             _row_lerp(cn[m], kr, tr, lc[m])
-        for j in range(ncols):
+        for j in range(ncols):  # lon, lat -> DEM pixel (branch-free: vectorised)
             kc = kcs[j]
             tc = tcs[j]
             a = line_lon[kc]
             lon = a + tc * (line_lon[kc + 1] - a)
             a = line_lat[kc]
             lat = a + tc * (line_lat[kc + 1] - a)
-            # the DEM (RasterDem._sample_window's arithmetic)
+            lon_row[j] = lon
+            lat_row[j] = lat
+        for j in range(ncols):  # the DEM (RasterDem._sample_window's arithmetic)
+            lon = lon_row[j]
+            lat = lat_row[j]
             hh = np.nan
             if np.isfinite(lon) and np.isfinite(lat):
                 xx = lon
