@@ -155,8 +155,8 @@ def test_the_path_rule(monkeypatch):
 
 
 def test_a_command_that_projects_a_few_points_imports_no_numba(data_dir, tmp_path):
-    """Opening the Pleiades RPC, projecting 10 points through the CLI and the API, and
-    ``geoblock plugins`` leave numba unimported; the API's bits are the kernel's."""
+    """Opening the Pleiades RPC, projecting 10 points through the CLI and the API, localising
+    them back, and ``geoblock plugins`` leave numba unimported; the bits are the kernel's."""
     model = geoblock.open_model(data_dir / PLEIADES, model="rpc")
     from geoblock_rpc.reference import localise
 
@@ -182,13 +182,97 @@ def test_a_command_that_projects_a_few_points_imports_no_numba(data_dir, tmp_pat
         model = geoblock.open_model({str(data_dir / PLEIADES)!r}, model="rpc")
         table = geoblock.read_points({str(points)!r})
         (row, col), status = model.project_with_status(table["lon"], table["lat"], table["h"])
+        g, _ = model.backproject_with_status(row, col, table["h"])
         print(json.dumps(["numba" in sys.modules, row.tobytes().hex(), col.tobytes().hex(),
-                          status.tolist()]))
+                          status.tolist(), g.lon.tobytes().hex()]))
     """)
     env = {k: v for k, v in os.environ.items() if k != "GEOBLOCK_PLUGIN_MODULES"}
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, env=env)
-    numba_imported, row_hex, col_hex, statuses = json.loads(proc.stdout.strip().splitlines()[-1])
+    numba_imported, row_hex, col_hex, statuses, lon_hex = json.loads(
+        proc.stdout.strip().splitlines()[-1])
     assert numba_imported is False
     assert statuses == [Status.CONVERGED] * 10 == status.tolist()
     assert bytes.fromhex(row_hex) == row.tobytes() and bytes.fromhex(col_hex) == col.tobytes()
+    g, _ = model.backproject_with_status(row, col, np.full(10, 100.0))  # the kernel, here
+    assert bytes.fromhex(lon_hex) == g.lon.tobytes()
+
+
+# ---------------------------------------------------------------------- localisation
+def _run_localise(model: RpcModel, row, col, h, coef=None) -> list[bytes]:
+    """Each path's (lon, lat, status) as one byte string: numpy, serial kernel, parallel."""
+    coef = model._coef if coef is None else coef
+    out = []
+    for localise in (_small.localise, _kernels.localise_serial, _kernels.localise):
+        n = row.shape[0]
+        lon, lat, status = np.full(n, 7.0), np.full(n, 7.0), np.full(n, 9, np.uint8)
+        localise(row, col, h, model._prm, coef, model.localisation_tolerance_px,
+                 model.localisation_stall_px, model.localisation_max_iterations, lon, lat, status)
+        out.append(lon.tobytes() + lat.tobytes() + status.tobytes())
+    return out
+
+
+def _image_points(model: RpcModel, n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    rows, cols = model.shape
+    lo, hi = model.valid_height_range
+    row = rng.uniform(-0.3 * rows, 1.3 * rows, n)
+    col = rng.uniform(-0.3 * cols, 1.3 * cols, n)
+    h = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), n)
+    row[:3] = [np.nan, np.inf, 1e300]
+    col[3] = -np.inf
+    h[4:6] = [np.nan, 1e7]
+    return row, col, h
+
+
+def test_small_localisation_gives_the_kernels_bits_on_every_rpc_file(rpc_file, data_dir):
+    model = geoblock.open_model(data_dir / rpc_file, model="rpc")
+    row, col, h = _image_points(model, 1501, seed=len(rpc_file))
+    small, serial, parallel = _run_localise(model, row, col, h)
+    assert small == serial
+    assert small == parallel
+    _, status = model.backproject_with_status(row, col, h)
+    assert {Status.CONVERGED, Status.OUT_OF_DOMAIN, Status.INVALID_INPUT} <= set(status.tolist())
+
+
+def test_small_localisation_of_a_degenerate_rpc_gives_the_kernels_bits():
+    """Zero and vanishing denominators and Jacobians: DIVERGED and MAX_ITERATIONS points."""
+    model = RpcModel.example()
+    row, col, h = _image_points(model, 800, seed=4)
+    for change in ((3, slice(None), 0.0), (1, slice(1, None), 0.0), (0, slice(1, 3), 0.0)):
+        coef = model._coef.copy()
+        coef[change[0], change[1]] = change[2]
+        small, serial, parallel = _run_localise(model, row, col, h, coef)
+        assert small == serial == parallel
+
+
+@settings(max_examples=100, deadline=None)
+@given(which=st.integers(0, 3),
+       points=st.lists(st.tuples(st.floats(-2.0, 2.0) | _SPECIAL, st.floats(-2.0, 2.0) | _SPECIAL,
+                                 st.floats(-8.0, 8.0) | _SPECIAL),
+                       min_size=1, max_size=30))
+def test_hypothesis_image_points_inside_and_outside_the_image(models, which, points):
+    model = models[which]
+    rpc = model.rpc
+    ln, sn, H = (np.array(v, dtype=np.float64) for v in zip(*points, strict=True))
+    with np.errstate(all="ignore"):
+        row = rpc.line_off + ln * rpc.line_scale
+        col = rpc.samp_off + sn * rpc.samp_scale
+        h = rpc.height_off + H * rpc.height_scale
+    small, serial, parallel = _run_localise(model, row, col, h)
+    assert small == serial == parallel
+
+
+@pytest.mark.parametrize("path", ["numpy", "kernel"])
+def test_localisation_does_not_depend_on_the_batch_size_or_the_path(monkeypatch, path):
+    model = RpcModel.example()
+    row, col, h = _image_points(model, 3000, seed=12)
+    monkeypatch.setattr(model_module, "_use_numpy", lambda n: path == "kernel")
+    g, status = model.backproject_with_status(row, col, h)
+    whole = g.lon.tobytes() + g.lat.tobytes() + g.h.tobytes() + status.tobytes()
+    monkeypatch.setattr(model_module, "_use_numpy", lambda n: path == "numpy")
+    cuts = [0, 1, 2, 17, 1000, 1001, 3000]
+    parts = [model.backproject_with_status(row[a:b], col[a:b], h[a:b])
+             for a, b in zip(cuts, cuts[1:], strict=False)]
+    pieces = b"".join(np.concatenate([p[0][k] for p in parts]).tobytes() for k in range(3))
+    assert pieces + np.concatenate([p[1] for p in parts]).tobytes() == whole
