@@ -38,6 +38,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from geoblock.dem.sampling import _nb_geoid_point, _nb_point_s
 from geoblock.pixels import PIXEL_CENTRE
 
 __all__ = ["RayWindow", "box", "heights", "lagrange3", "levels", "scan", "scan_reference"]
@@ -120,53 +121,6 @@ def lagrange3(h0: float, h1: float, h2: float,
 
 # ------------------------------------------------------------------------------ compiled
 @numba.njit(inline="always")
-def _keys4(t: float) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
-    a = -0.5
-    t2 = t * t
-    t3 = t * t * t
-    return (a * t3 - 2 * a * t2 + a * t,
-            (a + 2) * t3 - (a + 3) * t2 + 1,
-            -(a + 2) * t3 + (2 * a + 3) * t2 - a * t,
-            -a * t3 + a * t2)
-
-
-@numba.njit(inline="always")
-def _tap(posts: np.ndarray, r: float, c: float, n: int) -> float:  # pragma: no cover
-    """Interpolated post value at window pixel-centre coords (NaN taps propagate), as
-    :func:`geoblock.dem.sampling.sample` computes it."""
-    if n == 0:
-        return np.float64(posts[int(math.floor(r + PIXEL_CENTRE)),
-                                int(math.floor(c + PIXEL_CENTRE))])
-    r0 = math.floor(r)
-    c0 = math.floor(c)
-    tr = r - r0
-    tc = c - c0
-    if n == 2:
-        ri = int(r0)
-        ci = int(c0)
-        wc0 = 1.0 - tc
-        s0 = 0.0 + posts[ri, ci] * wc0
-        s0 = s0 + posts[ri, ci + 1] * tc
-        s1 = 0.0 + posts[ri + 1, ci] * wc0
-        s1 = s1 + posts[ri + 1, ci + 1] * tc
-        acc = 0.0 + (1.0 - tr) * s0
-        return acc + tr * s1
-    wr = _keys4(tr)
-    wc = _keys4(tc)
-    ri = int(r0) - 1
-    ci = int(c0) - 1
-    acc = 0.0
-    for i in range(4):
-        s = 0.0
-        s += posts[ri + i, ci] * wc[0]
-        s += posts[ri + i, ci + 1] * wc[1]
-        s += posts[ri + i, ci + 2] * wc[2]
-        s += posts[ri + i, ci + 3] * wc[3]
-        acc += wr[i] * s
-    return acc
-
-
-@numba.njit(inline="always")
 def _in_window(posts: np.ndarray, r: float, c: float, margin: float,
                n: int) -> bool:  # pragma: no cover - compiled
     """Whether every tap of the points within ``margin`` of window coords ``(r, c)`` lies in
@@ -181,32 +135,12 @@ def _in_window(posts: np.ndarray, r: float, c: float, margin: float,
 @numba.njit(inline="always")
 def _undulation(g: np.ndarray, hdr: np.ndarray, lon: float,
                 lat: float) -> float:  # pragma: no cover - compiled
-    """:meth:`geoblock.dem.Geoid.undulation` at one point (0 without a geoid)."""
+    """:meth:`geoblock.dem.Geoid.undulation` at one point (0 without a geoid); ``hdr`` is
+    :attr:`geoblock.dem.Geoid.header`."""
     if g.shape[0] == 0:
         return 0.0
-    rows, cols = g.shape
-    x = (lon - hdr[1]) / hdr[3]
-    y = (lat - hdr[0]) / hdr[2]
-    glob = hdr[4] != 0.0
-    if glob:
-        x = x % cols
-    if not (y >= 0 and y <= rows - 1):
-        return np.nan
-    if not glob and not (x >= 0 and x <= cols - 1):
-        return np.nan
-    i0 = min(int(math.floor(y)), rows - 2)
-    ty = y - i0
-    if glob:
-        fx = math.floor(x)
-        j0 = int(fx) % cols
-        j1 = (j0 + 1) % cols
-        tx = x - fx
-    else:
-        j0 = min(int(math.floor(x)), cols - 2)
-        j1 = j0 + 1
-        tx = x - j0
-    return ((1 - ty) * ((1 - tx) * g[i0, j0] + tx * g[i0, j1])
-            + ty * ((1 - tx) * g[i0 + 1, j0] + tx * g[i0 + 1, j1]))
+    return _nb_geoid_point(g, g.shape[0], g.shape[1], lon, lat, hdr[1], hdr[3], hdr[0],
+                           hdr[2], hdr[4] != 0.0)
 
 
 @numba.njit(inline="always")
@@ -227,13 +161,13 @@ def _height_px(posts: np.ndarray, off_r: float, off_c: float, rows: int, cols: i
     c = min(max(cc, 0.0), hi_c) - off_c
     if not _in_window(posts, r, c, margin, n):
         return np.nan, False
-    z = _tap(posts, r, c, n)
+    z = _nb_point_s(posts, r, c, n)
     if voids and certain:
         for sr in (-1.0, 1.0):
             for sc in (-1.0, 1.0):
                 r2 = min(max(rr + sr * margin, 0.0), hi_r) - off_r
                 c2 = min(max(cc + sc * margin, 0.0), hi_c) - off_c
-                if not np.isfinite(_tap(posts, r2, c2, n)):
+                if not np.isfinite(_nb_point_s(posts, r2, c2, n)):
                     certain = False
     if not np.isfinite(z):
         certain = False

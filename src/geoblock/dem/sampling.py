@@ -96,6 +96,38 @@ def _keys4(t: float) -> tuple[float, float, float, float]:  # pragma: no cover -
 
 
 @numba.njit(inline="always")
+def _nb_geoid_point(g: np.ndarray, rows: int, cols: int, lon: float, lat: float, lon0: float,
+                    dlon: float, lat0: float, dlat: float,
+                    glob: bool) -> float:  # pragma: no cover - compiled
+    """:meth:`geoblock.dem.geoid.Geoid.undulation` at one point, in its order of operations
+    (NaN outside a regional grid): ``g`` (rows, cols) its nodes (m), ``lon0, dlon, lat0,
+    dlat`` its grid (degrees), ``glob`` whether it wraps around the Earth. The fused ortho
+    lattice (:mod:`geoblock.ortho._fused`) and the ray scan (:mod:`geoblock.dem._raycast`)
+    share it."""
+    x = (lon - lon0) / dlon
+    y = (lat - lat0) / dlat
+    if glob:
+        x = np.mod(x, cols)
+    if not (y >= 0 and y <= rows - 1):
+        return np.nan
+    if not glob and not (x >= 0 and x <= cols - 1):
+        return np.nan
+    i0 = min(int(math.floor(y)), rows - 2)
+    ty = y - i0
+    if glob:
+        fx = math.floor(x)
+        j0 = int(fx) % cols
+        j1 = (j0 + 1) % cols
+        tx = x - fx
+    else:
+        j0 = min(int(math.floor(x)), cols - 2)
+        j1 = j0 + 1
+        tx = x - j0
+    return ((1 - ty) * ((1 - tx) * g[i0, j0] + tx * g[i0, j1])
+            + ty * ((1 - tx) * g[i0 + 1, j0] + tx * g[i0 + 1, j1]))
+
+
+@numba.njit(inline="always")
 def _nb_point_s(array: np.ndarray, r: float, c: float,
                 n: int) -> float:  # pragma: no cover - compiled
     """One point of :func:`sample` (n = 0 nearest, 2 bilinear, 4 bicubic): NaN outside the

@@ -31,7 +31,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from geoblock.dem.sampling import _nb_point_s
+from geoblock.dem.sampling import _nb_geoid_point, _nb_point_s
 from geoblock.pixels import PIXEL_CENTRE
 
 #: DEM posts read for a block's window, at most, per output pixel of the block (beyond, the
@@ -261,8 +261,8 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
                         return -1
                     hh = _nb_point_s(window, rr, cc, n)
                     if g_on:
-                        hh = hh + _geoid_point(g, g_rows, g_cols, lon, lat, g_lon0, g_dlon,
-                                               g_lat0, g_dlat, g_global)
+                        hh = hh + _nb_geoid_point(g, g_rows, g_cols, lon, lat, g_lon0, g_dlon,
+                                                  g_lat0, g_dlat, g_global)
                 elif strict:
                     return -1
             hrow[j] = hh
@@ -292,32 +292,3 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
             if not (np.isfinite(vr) and np.isfinite(vc)):
                 miss += 1
     return miss
-
-
-@numba.njit(inline="always")
-def _geoid_point(g: np.ndarray, rows: int, cols: int, lon: float, lat: float, lon0: float,
-                 dlon: float, lat0: float, dlat: float,
-                 glob: bool) -> float:  # pragma: no cover - compiled
-    """:meth:`geoblock.dem.geoid.Geoid.undulation` at one point, in its order of operations
-    (NaN outside a regional grid)."""
-    x = (lon - lon0) / dlon
-    y = (lat - lat0) / dlat
-    if glob:
-        x = np.mod(x, cols)
-    if not (y >= 0 and y <= rows - 1):
-        return np.nan
-    if not glob and not (x >= 0 and x <= cols - 1):
-        return np.nan
-    i0 = min(int(math.floor(y)), rows - 2)
-    ty = y - i0
-    if glob:
-        fx = math.floor(x)
-        j0 = int(fx) % cols
-        j1 = (j0 + 1) % cols
-        tx = x - fx
-    else:
-        j0 = min(int(math.floor(x)), cols - 2)
-        j1 = j0 + 1
-        tx = x - j0
-    return ((1 - ty) * ((1 - tx) * g[i0, j0] + tx * g[i0, j1])
-            + ty * ((1 - tx) * g[i0 + 1, j0] + tx * g[i0 + 1, j1]))
