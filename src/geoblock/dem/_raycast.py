@@ -38,7 +38,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from geoblock.dem.sampling import _nb_geoid_point, _nb_point_s
+from geoblock.dem.sampling import _nb_geoid_point, _nb_map_to_pixel, _nb_point_s
 from geoblock.pixels import PIXEL_CENTRE
 
 __all__ = ["RayWindow", "box", "heights", "lagrange3", "levels", "scan", "scan_reference"]
@@ -180,12 +180,8 @@ def _height(posts: np.ndarray, off_r: float, off_c: float, inv: np.ndarray, west
             lat: float) -> float:  # pragma: no cover - compiled
     """Ellipsoidal height at a point: the posts interpolated plus the geoid's ``N`` at the
     point (NaN when none), as :meth:`geoblock.dem.RasterDem.height` computes it."""
-    dx = lon - west
-    if not (dx >= 0.0 and dx < 360.0):
-        dx = dx % 360.0
-    xx = west + dx
-    cc = (inv[0] * xx + inv[1] * lat + inv[2]) - PIXEL_CENTRE
-    rr = (inv[3] * xx + inv[4] * lat + inv[5]) - PIXEL_CENTRE
+    rr, cc = _nb_map_to_pixel(lon, lat, west, True, inv[0], inv[1], inv[2], inv[3], inv[4],
+                              inv[5])
     z = _height_px(posts, off_r, off_c, rows, cols, n, rr, cc, 0.0, False)[0]
     return z + _undulation(g, hdr, lon, lat)
 

@@ -96,6 +96,24 @@ def _keys4(t: float) -> tuple[float, float, float, float]:  # pragma: no cover -
 
 
 @numba.njit(inline="always")
+def _nb_map_to_pixel(x: float, y: float, west: float, lonlat: bool, a: float, b: float,
+                     c: float, d: float, e: float,
+                     f: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Raster (row, col), pixel centres at integers, of map coordinates ``(x, y)`` by the
+    inverse geotransform ``a..f``; a longitude (``lonlat``) is first wrapped into
+    ``[west, west + 360)``. The one place the DEM kernels (sampling, the fused ortho lattice,
+    the ray scan) turn a point into a DEM pixel."""
+    if lonlat:
+        dx = x - west
+        if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
+            dx = dx % 360.0
+        x = west + dx
+    cc = (a * x + b * y + c) - PIXEL_CENTRE
+    rr = (d * x + e * y + f) - PIXEL_CENTRE
+    return rr, cc
+
+
+@numba.njit(inline="always")
 def _nb_geoid_point(g: np.ndarray, rows: int, cols: int, lon: float, lat: float, lon0: float,
                     dlon: float, lat0: float, dlat: float,
                     glob: bool) -> float:  # pragma: no cover - compiled
@@ -199,15 +217,7 @@ def _nb_pixel_coords(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: bool
     ``lonlat``), with the inverse geotransform ``inv`` (a, b, c, d, e, f)."""
     a, b, c, d, e, f = inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]
     for k in range(x.size):
-        xx = x[k]
-        yy = y[k]
-        if lonlat:
-            dx = xx - west
-            if not (dx >= 0.0 and dx < 360.0):  # else dx % 360.0 == dx exactly
-                dx = dx % 360.0
-            xx = west + dx
-        col[k] = (a * xx + b * yy + c) - PIXEL_CENTRE
-        row[k] = (d * xx + e * yy + f) - PIXEL_CENTRE
+        row[k], col[k] = _nb_map_to_pixel(x[k], y[k], west, lonlat, a, b, c, d, e, f)
 
 
 @numba.njit(nogil=True, cache=True)
@@ -283,15 +293,7 @@ def _nb_sample_window(x: np.ndarray, y: np.ndarray, inv: np.ndarray, lonlat: boo
     hi_r = rows - 1.0
     hi_c = cols - 1.0
     for k in range(x.size):
-        xx = x[k]
-        yy = y[k]
-        if lonlat:
-            dx = xx - west
-            if not (dx >= 0.0 and dx < 360.0):
-                dx = dx % 360.0
-            xx = west + dx
-        cc = (a * xx + b * yy + c) - PIXEL_CENTRE
-        rr = (d * xx + e * yy + f) - PIXEL_CENTRE
+        rr, cc = _nb_map_to_pixel(x[k], y[k], west, lonlat, a, b, c, d, e, f)
         if not (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
                 and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
             out[k] = np.nan

@@ -31,7 +31,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from geoblock.dem.sampling import _nb_geoid_point, _nb_point_s
+from geoblock.dem.sampling import _nb_geoid_point, _nb_map_to_pixel, _nb_point_s
 from geoblock.pixels import PIXEL_CENTRE
 
 #: DEM posts read for a block's window, at most, per output pixel of the block (beyond, the
@@ -239,13 +239,7 @@ def _nb_fused_rows(lon_n: np.ndarray, lat_n: np.ndarray, rn: np.ndarray, cn: np.
             lat = lat_row[j]
             hh = np.nan
             if np.isfinite(lon) and np.isfinite(lat):
-                xx = lon
-                dx = xx - west
-                if not (dx >= 0.0 and dx < 360.0):
-                    dx = dx % 360.0
-                xx = west + dx
-                cc = (a_ * xx + b_ * lat + c_) - PIXEL_CENTRE
-                rr = (d_ * xx + e_ * lat + f_) - PIXEL_CENTRE
+                rr, cc = _nb_map_to_pixel(lon, lat, west, True, a_, b_, c_, d_, e_, f_)
                 if (rr >= -PIXEL_CENTRE and rr <= rows - PIXEL_CENTRE
                         and cc >= -PIXEL_CENTRE and cc <= cols - PIXEL_CENTRE):
                     rr = min(max(rr, 0.0), hi_r) - off_r
